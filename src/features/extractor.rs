@@ -1,0 +1,237 @@
+//! The SuperPoint + ANMS extractor: pyramid → network → periodic filter + NMS →
+//! ANMS → descriptors, with ORB-SLAM3's per-level quotas and keypoint fields.
+
+use std::time::Instant;
+
+use ndarray::ArrayView4;
+
+use super::anms::{self, Candidate};
+use super::image::MIN_IMAGE_SIDE;
+use super::model::{SuperPointModel, CELL};
+use super::nms::{nms_candidates, ValidRegion};
+use super::orientation::{CircularPatch, PATCH_SIZE};
+use super::periodic::{reject_low_contrast, PhaseBaseline};
+use super::pyramid::{build_pyramid, ScaleTables};
+use super::{ExtractorConfig, FeatureError, Features, GrayImage, GrayImageView, Keypoint, StageTimings};
+
+/// What the periodic-artefact filter did on one extraction (for diagnostics).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PeriodicFilterReport {
+    /// The largest per-phase score offset subtracted on level 0.
+    pub max_offset: f32,
+    /// Its phase (x mod 8, y mod 8).
+    pub phase: (usize, usize),
+    /// Candidates dropped for low contrast, over all levels.
+    pub low_contrast_rejected: usize,
+}
+
+/// Reusable buffers, so repeated extractions do not allocate anew.
+#[derive(Default)]
+struct Scratch {
+    input: Vec<f32>,
+    quantile: Vec<f32>,
+    descriptor: Vec<f32>,
+    points: Vec<(f32, f32)>,
+}
+
+/// SuperPoint keypoints and descriptors, spread by ANMS, with ORB-SLAM3's
+/// pyramid semantics. One instance is not shared between threads; create one
+/// per thread (two extractors run in parallel fine).
+pub struct SuperPointExtractor {
+    config: ExtractorConfig,
+    tables: ScaleTables,
+    model: SuperPointModel,
+    patch: CircularPatch,
+    scratch: Scratch,
+    last_report: PeriodicFilterReport,
+}
+
+impl std::fmt::Debug for SuperPointExtractor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SuperPointExtractor").field("config", &self.config).field("model", &self.model).finish()
+    }
+}
+
+impl SuperPointExtractor {
+    /// Validates the config, loads ONNX Runtime and the model.
+    pub fn new(config: ExtractorConfig) -> Result<Self, FeatureError> {
+        config.validate()?;
+        let model = SuperPointModel::load(&config.model_path, config.ort_library_path.as_deref(), config.threads)?;
+        let tables = ScaleTables::new(config.n_features, config.scale_factor, config.n_levels);
+        Ok(Self {
+            config,
+            tables,
+            model,
+            patch: CircularPatch::new(),
+            scratch: Scratch::default(),
+            last_report: PeriodicFilterReport::default(),
+        })
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &ExtractorConfig {
+        &self.config
+    }
+
+    /// ORB-SLAM3's scale and sigma² tables and the per-level quotas.
+    pub fn scale_tables(&self) -> &ScaleTables {
+        &self.tables
+    }
+
+    /// Floats per descriptor, read from the model.
+    pub fn descriptor_len(&self) -> usize {
+        self.model.descriptor_len()
+    }
+
+    /// What the periodic-artefact filter did on the last extraction.
+    pub fn last_periodic_report(&self) -> PeriodicFilterReport {
+        self.last_report
+    }
+
+    /// Direct access to the network, e.g. to time a bare inference.
+    pub fn model_mut(&mut self) -> &mut SuperPointModel {
+        &mut self.model
+    }
+
+    /// Extracts keypoints (level-0 coordinates) and unit-L2 descriptors.
+    pub fn extract(&mut self, image: GrayImageView<'_>) -> Result<Features, FeatureError> {
+        let (width, height) = (image.width(), image.height());
+        if width < MIN_IMAGE_SIDE || height < MIN_IMAGE_SIDE {
+            return Err(FeatureError::ImageTooSmall { width, height, min_side: MIN_IMAGE_SIDE });
+        }
+        let mut timings = StageTimings::default();
+        let t = Instant::now();
+        let pyramid = if self.tables.n_levels() > 1 { build_pyramid(image, &self.tables)? } else { Vec::new() };
+        timings.preprocess_ms += ms(t);
+
+        let mut features = Features { descriptor_len: self.model.descriptor_len(), ..Features::default() };
+        features.keypoints.reserve(self.config.n_features);
+        features.descriptors.reserve(self.config.n_features * features.descriptor_len);
+        self.last_report = PeriodicFilterReport::default();
+        for level in 0..self.tables.n_levels() {
+            let level_image = match level {
+                0 => image,
+                _ => match pyramid.get(level) {
+                    Some(img) => img.view(),
+                    None => break, // the level would be smaller than one pixel
+                },
+            };
+            let quota = self.tables.features_per_level[level];
+            if quota == 0 || level_image.width() < MIN_IMAGE_SIDE || level_image.height() < MIN_IMAGE_SIDE {
+                continue;
+            }
+            self.extract_level(level, level_image, quota, &mut features, &mut timings)?;
+        }
+        timings.total_ms = timings.preprocess_ms
+            + timings.inference_ms
+            + timings.decode_nms_ms
+            + timings.anms_ms
+            + timings.descriptors_ms;
+        features.timings = timings;
+        Ok(features)
+    }
+
+    fn extract_level(
+        &mut self,
+        level: usize,
+        image: GrayImageView<'_>,
+        quota: usize,
+        features: &mut Features,
+        timings: &mut StageTimings,
+    ) -> Result<(), FeatureError> {
+        let t = Instant::now();
+        let (pw, ph) = fill_padded_input(image, &mut self.scratch.input);
+        timings.preprocess_ms += ms(t);
+
+        let t_inference = Instant::now();
+        let input = ArrayView4::from_shape((1, 1, ph, pw), &self.scratch.input)
+            .map_err(|e| FeatureError::Runtime(e.to_string()))?;
+        let config = &self.config;
+        let scratch = &mut self.scratch;
+        let patch = &self.patch;
+        let scale = self.tables.scale_factors[level];
+        let report = &mut self.last_report;
+        let region = ValidRegion { width: image.width(), height: image.height(), border: config.border };
+        self.model.run(input, |scores, desc| {
+            timings.inference_ms += ms(t_inference);
+
+            let t = Instant::now();
+            let filter = &config.periodic_filter;
+            let baseline =
+                PhaseBaseline::estimate(scores, image.width(), image.height(), filter, &mut scratch.quantile);
+            if level == 0 {
+                let (max_offset, phase) = baseline.strongest();
+                report.max_offset = max_offset;
+                report.phase = phase;
+            }
+            let detect = |threshold: f32| -> (Vec<Candidate>, usize) {
+                let mut c = nms_candidates(scores, &baseline, threshold, config.nms_radius, region);
+                let before = c.len();
+                reject_low_contrast(&mut c, image, filter);
+                let rejected = before - c.len();
+                (c, rejected)
+            };
+            let (mut candidates, mut rejected) = detect(config.threshold);
+            if candidates.len() < quota && config.min_threshold < config.threshold {
+                (candidates, rejected) = detect(config.min_threshold);
+            }
+            report.low_contrast_rejected += rejected;
+            timings.decode_nms_ms += ms(t);
+
+            let t = Instant::now();
+            let selected = anms::select(config.anms, &candidates, quota, image.width(), image.height());
+            timings.anms_ms += ms(t);
+
+            let t = Instant::now();
+            scratch.points.clear();
+            scratch.points.extend(selected.iter().map(|&i| (candidates[i].x, candidates[i].y)));
+            super::descriptors::sample_descriptors(
+                desc,
+                &scratch.points,
+                &mut features.descriptors,
+                &mut scratch.descriptor,
+            );
+            let size = PATCH_SIZE as f32 * scale;
+            features.keypoints.extend(selected.iter().map(|&i| {
+                let c = candidates[i];
+                Keypoint {
+                    x: c.x * scale,
+                    y: c.y * scale,
+                    size,
+                    angle: patch.angle(image, c.x, c.y),
+                    response: c.score,
+                    octave: level as i32,
+                }
+            }));
+            timings.descriptors_ms += ms(t);
+        })
+    }
+}
+
+/// Copies the image into `buffer` as floats in [0, 1], padded by edge
+/// replication up to a multiple of the cell size; returns the padded size.
+fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize, usize) {
+    let (w, h) = (image.width(), image.height());
+    let pw = w.div_ceil(CELL) * CELL;
+    let ph = h.div_ceil(CELL) * CELL;
+    buffer.clear();
+    buffer.reserve(pw * ph);
+    const INV: f32 = 1.0 / 255.0;
+    for y in 0..ph {
+        let row = image.row(y.min(h - 1));
+        buffer.extend(row.iter().map(|&p| p as f32 * INV));
+        let last = row[w - 1] as f32 * INV;
+        buffer.extend(std::iter::repeat_n(last, pw - w));
+    }
+    (pw, ph)
+}
+
+fn ms(since: Instant) -> f64 {
+    since.elapsed().as_secs_f64() * 1e3
+}
+
+/// Loads an image file and extracts features from it (a convenience for tools).
+pub fn extract_file(extractor: &mut SuperPointExtractor, path: &std::path::Path) -> Result<Features, FeatureError> {
+    let image = GrayImage::load(path)?;
+    extractor.extract(image.view())
+}

@@ -1,0 +1,154 @@
+use std::path::Path;
+
+use opencv::core::Mat;
+use opencv::prelude::*;
+
+use super::FeatureError;
+
+/// Largest accepted image side, in pixels.
+pub const MAX_IMAGE_SIDE: usize = 16384;
+/// Smallest accepted image side, in pixels (one 8-px descriptor cell plus margins).
+pub const MIN_IMAGE_SIDE: usize = 16;
+
+/// A borrowed 8-bit gray image with an arbitrary row stride.
+#[derive(Clone, Copy, Debug)]
+pub struct GrayImageView<'a> {
+    data: &'a [u8],
+    width: usize,
+    height: usize,
+    stride: usize,
+}
+
+impl<'a> GrayImageView<'a> {
+    /// Wraps a buffer; checks sizes, the stride and the buffer length.
+    pub fn new(data: &'a [u8], width: usize, height: usize, stride: usize) -> Result<Self, FeatureError> {
+        if width == 0 || height == 0 {
+            return Err(FeatureError::EmptyImage { width, height });
+        }
+        if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
+            return Err(FeatureError::ImageTooLarge { width, height, max_side: MAX_IMAGE_SIDE });
+        }
+        if stride < width {
+            return Err(FeatureError::StrideTooSmall { stride, width });
+        }
+        let required = stride * (height - 1) + width;
+        if data.len() < required {
+            return Err(FeatureError::BufferTooSmall { required, actual: data.len(), width, height, stride });
+        }
+        Ok(Self { data, width, height, stride })
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Bytes per row.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// Row `y` (exactly `width` bytes). Panics when `y >= height`.
+    pub fn row(&self, y: usize) -> &'a [u8] {
+        &self.data[y * self.stride..y * self.stride + self.width]
+    }
+
+    /// The pixel at column `x`, row `y`. Panics when out of range.
+    pub fn get(&self, x: usize, y: usize) -> u8 {
+        self.data[y * self.stride + x]
+    }
+
+    /// A contiguous owned copy.
+    pub fn to_owned_image(&self) -> GrayImage {
+        let mut data = Vec::with_capacity(self.width * self.height);
+        for y in 0..self.height {
+            data.extend_from_slice(self.row(y));
+        }
+        GrayImage { data, width: self.width, height: self.height }
+    }
+}
+
+/// An owned, contiguous 8-bit gray image.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct GrayImage {
+    data: Vec<u8>,
+    width: usize,
+    height: usize,
+}
+
+impl GrayImage {
+    /// Takes a contiguous row-major buffer of `width * height` bytes.
+    pub fn from_vec(data: Vec<u8>, width: usize, height: usize) -> Result<Self, FeatureError> {
+        GrayImageView::new(&data, width, height, width)?;
+        Ok(Self { data, width, height })
+    }
+
+    /// Reads an image file (any format OpenCV decodes) and converts it to gray.
+    pub fn load(path: &Path) -> Result<Self, FeatureError> {
+        let read_err = |reason: String| FeatureError::ImageRead { path: path.to_path_buf(), reason };
+        if !path.is_file() {
+            return Err(read_err("no such file".into()));
+        }
+        let name = path.to_str().ok_or_else(|| read_err("path is not valid UTF-8".into()))?;
+        let mat = opencv::imgcodecs::imread(name, opencv::imgcodecs::IMREAD_GRAYSCALE)
+            .map_err(|e| read_err(e.to_string()))?;
+        if mat.empty() {
+            return Err(read_err("OpenCV could not decode it (unknown format or corrupt file)".into()));
+        }
+        Self::from_mat(&mat)
+    }
+
+    /// Copies an 8-bit OpenCV matrix; 3- and 4-channel images are converted to gray.
+    pub fn from_mat(mat: &Mat) -> Result<Self, FeatureError> {
+        use opencv::core::{CV_8UC1, CV_8UC3, CV_8UC4};
+        let gray = match mat.typ() {
+            t if t == CV_8UC1 => mat.try_clone()?,
+            t if t == CV_8UC3 || t == CV_8UC4 => {
+                let code = if t == CV_8UC3 { opencv::imgproc::COLOR_BGR2GRAY } else { opencv::imgproc::COLOR_BGRA2GRAY };
+                let mut g = Mat::default();
+                opencv::imgproc::cvt_color_def(mat, &mut g, code)?;
+                g
+            }
+            t => return Err(FeatureError::UnsupportedImageType(opencv::core::type_to_string(t)?)),
+        };
+        let width = gray.cols().max(0) as usize;
+        let height = gray.rows().max(0) as usize;
+        if width == 0 || height == 0 {
+            return Err(FeatureError::EmptyImage { width, height });
+        }
+        let gray = if gray.is_continuous() { gray } else { gray.try_clone()? };
+        let data = gray.data_bytes()?.to_vec();
+        Self::from_vec(data, width, height)
+    }
+
+    /// Wraps the pixels in an OpenCV matrix (a copy).
+    pub fn to_mat(&self) -> Result<Mat, FeatureError> {
+        let flat = Mat::from_slice(&self.data)?;
+        Ok(flat.reshape(1, self.height as i32)?.try_clone()?)
+    }
+
+    /// A borrowed view.
+    pub fn view(&self) -> GrayImageView<'_> {
+        GrayImageView { data: &self.data, width: self.width, height: self.height, stride: self.width }
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// The row-major pixels.
+    pub fn as_slice(&self) -> &[u8] {
+        &self.data
+    }
+}

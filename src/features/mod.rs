@@ -1,0 +1,22 @@
+//! Feature extraction: SuperPoint via ONNX Runtime, NMS, the periodic-artefact
+//! filter, ANMS, descriptor sampling, the ORB-SLAM3 scale pyramid, and ORB.
+
+pub mod anms;
+mod config;
+pub mod descriptors;
+mod error;
+mod extractor;
+mod image;
+mod keypoint;
+pub mod model;
+pub mod nms;
+pub mod orientation;
+pub mod periodic;
+pub mod pyramid;
+pub mod runtime;
+
+pub use config::{default_model_path, AnmsMethod, ExtractorConfig, PeriodicFilterConfig};
+pub use error::FeatureError;
+pub use extractor::{extract_file, PeriodicFilterReport, SuperPointExtractor};
+pub use image::{GrayImage, GrayImageView, MAX_IMAGE_SIDE, MIN_IMAGE_SIDE};
+pub use keypoint::{Features, Keypoint, StageTimings};

@@ -1,0 +1,135 @@
+//! The SuperPoint network behind ONNX Runtime: loading, interface checks, inference.
+
+use std::path::{Path, PathBuf};
+
+use ndarray::{ArrayView2, ArrayView3, ArrayView4};
+use ort::session::builder::GraphOptimizationLevel;
+use ort::session::Session;
+use ort::value::TensorRef;
+
+use super::FeatureError;
+
+/// The name of the model's input.
+pub const INPUT_NAME: &str = "image";
+/// The name of the dense score output, [1, H', W'].
+pub const SCORES_NAME: &str = "scores";
+/// The name of the dense descriptor output, [1, D, H/8, W/8].
+pub const DESC_NAME: &str = "desc";
+/// Cell size of the descriptor map, in pixels.
+pub const CELL: usize = 8;
+
+/// A SuperPoint-interface ONNX model in an ONNX Runtime session.
+pub struct SuperPointModel {
+    session: Session,
+    path: PathBuf,
+    descriptor_len: usize,
+}
+
+impl std::fmt::Debug for SuperPointModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SuperPointModel")
+            .field("path", &self.path)
+            .field("descriptor_len", &self.descriptor_len)
+            .finish()
+    }
+}
+
+impl SuperPointModel {
+    /// Loads the model and checks its interface with one small inference; the
+    /// descriptor length is read from that output.
+    pub fn load(path: &Path, ort_library: Option<&Path>, threads: usize) -> Result<Self, FeatureError> {
+        if !path.is_file() {
+            return Err(FeatureError::ModelNotFound { path: path.to_path_buf() });
+        }
+        let environment = super::runtime::environment(ort_library)?;
+        let interface_err =
+            |reason: String| FeatureError::ModelInterface { path: path.to_path_buf(), reason };
+        let runtime_err = |e: ort::Error<ort::session::builder::SessionBuilder>| FeatureError::Runtime(e.to_string());
+        let mut builder = Session::builder(&environment)?
+            .with_optimization_level(GraphOptimizationLevel::Level3)
+            .map_err(runtime_err)?;
+        if threads > 0 {
+            builder = builder.with_intra_threads(threads).map_err(runtime_err)?;
+        }
+        let session = builder.commit_from_file(path).map_err(|e| interface_err(format!("ONNX Runtime cannot load it: {e}")))?;
+        let names = |outlets: &[ort::value::Outlet]| outlets.iter().map(|o| o.name().to_string()).collect::<Vec<_>>();
+        let inputs = names(session.inputs());
+        let outputs = names(session.outputs());
+        if inputs != [INPUT_NAME] {
+            return Err(interface_err(format!("expected one input named `{INPUT_NAME}`, found {inputs:?}")));
+        }
+        for wanted in [SCORES_NAME, DESC_NAME] {
+            if !outputs.iter().any(|o| o == wanted) {
+                return Err(interface_err(format!("expected an output named `{wanted}`, found {outputs:?}")));
+            }
+        }
+        let mut model = Self { session, path: path.to_path_buf(), descriptor_len: 0 };
+        let probe = ndarray::Array4::<f32>::zeros((1, 1, 2 * CELL, 2 * CELL));
+        let descriptor_len = model.run(probe.view(), |scores, desc| {
+            if scores.dim() != (2 * CELL, 2 * CELL) || desc.dim().1 != 2 || desc.dim().2 != 2 {
+                return Err(format!(
+                    "a 16x16 input gave scores {:?} and desc {:?}; expected scores [16, 16] and desc [D, 2, 2]",
+                    scores.dim(),
+                    desc.dim()
+                ));
+            }
+            Ok(desc.dim().0)
+        })?;
+        let descriptor_len = descriptor_len.map_err(interface_err)?;
+        if descriptor_len == 0 {
+            return Err(interface_err("descriptor length is 0".into()));
+        }
+        model.descriptor_len = descriptor_len;
+        Ok(model)
+    }
+
+    /// Floats per descriptor, read from the model.
+    pub fn descriptor_len(&self) -> usize {
+        self.descriptor_len
+    }
+
+    /// The model file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Runs the network on a [1, 1, H, W] image in [0, 1] and hands the dense
+    /// outputs — scores [H', W'] and descriptors [D, H/8, W/8] — to `consume`
+    /// without copying them.
+    pub fn run<R>(
+        &mut self,
+        image: ArrayView4<'_, f32>,
+        consume: impl FnOnce(ArrayView2<'_, f32>, ArrayView3<'_, f32>) -> R,
+    ) -> Result<R, FeatureError> {
+        let path = self.path.clone();
+        let interface_err = |reason: String| FeatureError::ModelInterface { path: path.clone(), reason };
+        let input = TensorRef::from_array_view(image)?;
+        let outputs = self.session.run(ort::inputs![INPUT_NAME => input])?;
+        let scores = outputs
+            .get(SCORES_NAME)
+            .ok_or_else(|| interface_err(format!("no `{SCORES_NAME}` output")))?
+            .try_extract_array::<f32>()?;
+        let desc = outputs
+            .get(DESC_NAME)
+            .ok_or_else(|| interface_err(format!("no `{DESC_NAME}` output")))?
+            .try_extract_array::<f32>()?;
+        let scores = match scores.ndim() {
+            3 if scores.shape()[0] == 1 => scores.index_axis_move(ndarray::Axis(0), 0),
+            4 if scores.shape()[0] == 1 && scores.shape()[1] == 1 => {
+                scores.index_axis_move(ndarray::Axis(0), 0).index_axis_move(ndarray::Axis(0), 0)
+            }
+            _ => return Err(interface_err(format!("`{SCORES_NAME}` has shape {:?}; expected [1, H, W]", scores.shape()))),
+        };
+        if desc.ndim() != 4 || desc.shape()[0] != 1 {
+            return Err(interface_err(format!("`{DESC_NAME}` has shape {:?}; expected [1, D, H/8, W/8]", desc.shape())));
+        }
+        let desc = desc.index_axis_move(ndarray::Axis(0), 0);
+        let scores = scores
+            .into_dimensionality::<ndarray::Ix2>()
+            .map_err(|e| interface_err(e.to_string()))?;
+        let desc = desc
+            .into_dimensionality::<ndarray::Ix3>()
+            .map_err(|e| interface_err(e.to_string()))?;
+        Ok(consume(scores, desc))
+    }
+}

@@ -1,0 +1,102 @@
+//! Keypoint orientation by the intensity centroid, as ORB-SLAM3's `IC_Angle`.
+
+use super::GrayImageView;
+
+/// ORB-SLAM3's `HALF_PATCH_SIZE`.
+pub const HALF_PATCH_SIZE: usize = 15;
+/// ORB-SLAM3's `PATCH_SIZE`.
+pub const PATCH_SIZE: usize = 31;
+
+/// The circular patch's half-widths per row (ORB-SLAM3's `umax`).
+#[derive(Clone, Debug)]
+pub struct CircularPatch {
+    umax: Vec<i32>,
+}
+
+impl Default for CircularPatch {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl CircularPatch {
+    /// Builds `umax` exactly as ORB-SLAM3's extractor constructor does.
+    pub fn new() -> Self {
+        let hp = HALF_PATCH_SIZE as i32;
+        let mut umax = vec![0i32; HALF_PATCH_SIZE + 2];
+        let half_sqrt2 = HALF_PATCH_SIZE as f32 * std::f32::consts::SQRT_2 / 2.0;
+        let vmax = (half_sqrt2 + 1.0).floor() as i32;
+        let vmin = half_sqrt2.ceil() as i32;
+        let hp2 = (hp * hp) as f64;
+        for v in 0..=vmax {
+            umax[v as usize] = (hp2 - (v * v) as f64).sqrt().round() as i32;
+        }
+        let mut v0 = 0usize;
+        let mut v = hp;
+        while v >= vmin {
+            while umax[v0] == umax[v0 + 1] {
+                v0 += 1;
+            }
+            umax[v as usize] = v0 as i32;
+            v0 += 1;
+            v -= 1;
+        }
+        Self { umax }
+    }
+
+    /// The orientation in degrees, [0, 360), of the intensity centroid around
+    /// (x, y). Pixels of the patch outside the image are skipped.
+    pub fn angle(&self, image: GrayImageView<'_>, x: f32, y: f32) -> f32 {
+        let (cx, cy) = (x.round() as i64, y.round() as i64);
+        let (w, h) = (image.width() as i64, image.height() as i64);
+        let (mut m01, mut m10) = (0i64, 0i64);
+        let hp = HALF_PATCH_SIZE as i64;
+        for v in -hp..=hp {
+            let py = cy + v;
+            if py < 0 || py >= h {
+                continue;
+            }
+            let row = image.row(py as usize);
+            let d = self.umax[v.unsigned_abs() as usize] as i64;
+            for u in -d..=d {
+                let px = cx + u;
+                if px < 0 || px >= w {
+                    continue;
+                }
+                let p = row[px as usize] as i64;
+                m10 += u * p;
+                m01 += v * p;
+            }
+        }
+        let deg = (m01 as f32).atan2(m10 as f32).to_degrees();
+        if deg < 0.0 {
+            deg + 360.0
+        } else {
+            deg
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn umax_matches_orb_slam3() {
+        // Values printed by ORB-SLAM3's constructor for HALF_PATCH_SIZE = 15.
+        let p = CircularPatch::new();
+        assert_eq!(&p.umax[..16], &[15, 15, 15, 15, 14, 14, 14, 13, 13, 12, 11, 10, 9, 8, 6, 3]);
+    }
+
+    #[test]
+    fn a_bright_right_half_points_at_zero_degrees_and_bottom_at_ninety() {
+        let right: Vec<u8> = (0..64 * 64).map(|i| if i % 64 >= 32 { 200 } else { 10 }).collect();
+        let img = GrayImageView::new(&right, 64, 64, 64).unwrap();
+        let a = CircularPatch::new().angle(img, 32.0, 32.0);
+        assert!(a < 5.0 || a > 355.0, "angle {a}");
+        let bottom: Vec<u8> = (0..64 * 64).map(|i| if i / 64 >= 32 { 200 } else { 10 }).collect();
+        let img = GrayImageView::new(&bottom, 64, 64, 64).unwrap();
+        let a = CircularPatch::new().angle(img, 32.0, 32.0);
+        assert!((a - 90.0).abs() < 5.0, "angle {a}");
+    }
+}

@@ -1,0 +1,9 @@
+//! # spslam
+//!
+//! SuperPoint-SLAM3 rebuilt in Rust. This crate ships:
+//! - [`features`]: the SuperPoint + ANMS feature extractor (ONNX Runtime), with
+//!   ORB-SLAM3's pyramid and scale-table semantics, and OpenCV's ORB as a reference;
+//! - `ffi`: a C ABI over the extractor (see `include/spslam.h`).
+#![warn(missing_docs)]
+
+pub mod features;
