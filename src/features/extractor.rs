@@ -10,17 +10,15 @@ use super::image::MIN_IMAGE_SIDE;
 use super::model::{SuperPointModel, CELL};
 use super::nms::{nms_candidates, ValidRegion};
 use super::orientation::{CircularPatch, PATCH_SIZE};
-use super::periodic::{reject_low_contrast, PhaseBaseline};
+use super::periodic::{reject_low_contrast, LatticeMask};
 use super::pyramid::{build_pyramid, ScaleTables};
 use super::{ExtractorConfig, FeatureError, Features, GrayImage, GrayImageView, Keypoint, StageTimings};
 
 /// What the periodic-artefact filter did on one extraction (for diagnostics).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PeriodicFilterReport {
-    /// The largest per-phase score offset subtracted on level 0.
-    pub max_offset: f32,
-    /// Its phase (x mod 8, y mod 8).
-    pub phase: (usize, usize),
+    /// Cells cleared as part of an 8-px lattice, over all levels.
+    pub lattice_cells: usize,
     /// Candidates dropped for low contrast, over all levels.
     pub low_contrast_rejected: usize,
 }
@@ -28,8 +26,7 @@ pub struct PeriodicFilterReport {
 /// Reusable buffers, so repeated extractions do not allocate anew.
 #[derive(Default)]
 struct Scratch {
-    input: Vec<f32>,
-    quantile: Vec<f32>,
+    cell_max: Vec<(u8, f32)>,
     descriptor: Vec<f32>,
     points: Vec<(f32, f32)>,
 }
@@ -42,6 +39,7 @@ pub struct SuperPointExtractor {
     tables: ScaleTables,
     model: SuperPointModel,
     patch: CircularPatch,
+    input: Vec<f32>,
     scratch: Scratch,
     last_report: PeriodicFilterReport,
 }
@@ -63,6 +61,7 @@ impl SuperPointExtractor {
             tables,
             model,
             patch: CircularPatch::new(),
+            input: Vec::new(),
             scratch: Scratch::default(),
             last_report: PeriodicFilterReport::default(),
         })
@@ -140,11 +139,11 @@ impl SuperPointExtractor {
         timings: &mut StageTimings,
     ) -> Result<(), FeatureError> {
         let t = Instant::now();
-        let (pw, ph) = fill_padded_input(image, &mut self.scratch.input);
+        let (pw, ph) = fill_padded_input(image, &mut self.input);
         timings.preprocess_ms += ms(t);
 
         let t_inference = Instant::now();
-        let input = ArrayView4::from_shape((1, 1, ph, pw), &self.scratch.input)
+        let input = ArrayView4::from_shape((1, 1, ph, pw), &self.input)
             .map_err(|e| FeatureError::Runtime(e.to_string()))?;
         let config = &self.config;
         let scratch = &mut self.scratch;
@@ -157,25 +156,35 @@ impl SuperPointExtractor {
 
             let t = Instant::now();
             let filter = &config.periodic_filter;
-            let baseline =
-                PhaseBaseline::estimate(scores, image.width(), image.height(), filter, &mut scratch.quantile);
-            if level == 0 {
-                let (max_offset, phase) = baseline.strongest();
-                report.max_offset = max_offset;
-                report.phase = phase;
-            }
-            let detect = |threshold: f32| -> (Vec<Candidate>, usize) {
-                let mut c = nms_candidates(scores, &baseline, threshold, config.nms_radius, region);
+            let detect = |threshold: f32, radius: usize, cell_max: &mut Vec<(u8, f32)>| -> (Vec<Candidate>, usize, usize) {
+                let mask = if filter.enabled && filter.lattice_min_support > 0 {
+                    let (w, h) = (image.width(), image.height());
+                    LatticeMask::estimate(scores, w, h, threshold, filter.lattice_min_support, cell_max)
+                } else {
+                    LatticeMask::empty()
+                };
+                let adjust = |x: usize, y: usize, s: f32| if mask.is_suppressed(x, y) { 0.0 } else { s };
+                let mut c = nms_candidates(scores, adjust, threshold, radius, region);
                 let before = c.len();
                 reject_low_contrast(&mut c, image, filter);
                 let rejected = before - c.len();
-                (c, rejected)
+                (c, rejected, mask.suppressed_cells())
             };
-            let (mut candidates, mut rejected) = detect(config.threshold);
-            if candidates.len() < quota && config.min_threshold < config.threshold {
-                (candidates, rejected) = detect(config.min_threshold);
+            // As ORB-SLAM3 retries FAST with minThFAST: the fallbacks are tried
+            // only while the level has fewer candidates than its quota.
+            let first = (config.threshold, config.nms_radius);
+            let (mut candidates, mut rejected, mut lattice) = detect(first.0, first.1, &mut scratch.cell_max);
+            for (threshold, radius) in fallback_detections(config) {
+                if candidates.len() >= quota {
+                    break;
+                }
+                let retry = detect(threshold, radius, &mut scratch.cell_max);
+                if retry.0.len() > candidates.len() {
+                    (candidates, rejected, lattice) = retry;
+                }
             }
             report.low_contrast_rejected += rejected;
+            report.lattice_cells += lattice;
             timings.decode_nms_ms += ms(t);
 
             let t = Instant::now();
@@ -224,6 +233,17 @@ fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize,
         buffer.extend(std::iter::repeat_n(last, pw - w));
     }
     (pw, ph)
+}
+
+/// The (threshold, NMS radius) pairs tried after the first detection on a
+/// level that is short of its quota: `min_threshold`, a quarter and a
+/// sixteenth of it, then that last threshold with half the NMS radius.
+fn fallback_detections(config: &ExtractorConfig) -> impl Iterator<Item = (f32, usize)> {
+    let (first, min, r) = (config.threshold, config.min_threshold, config.nms_radius);
+    let half_radius = (r / 2).max(1).min(r);
+    [(min, r), (min / 4.0, r), (min / 16.0, r), (min / 16.0, half_radius)]
+        .into_iter()
+        .filter(move |&(t, radius)| t < first || radius < r)
 }
 
 fn ms(since: Instant) -> f64 {

@@ -4,6 +4,7 @@
 pub mod anms;
 mod config;
 pub mod descriptors;
+pub mod draw;
 mod error;
 mod extractor;
 mod image;

