@@ -19,7 +19,9 @@ fn frames(data: &Path) -> Vec<(String, PathBuf)> {
         out.push(("kitti".to_string(), kitti.join(format!("{i:06}.png"))));
     }
     let euroc = data.join("euroc/V1_01_easy_first95/mav0/cam0/data");
-    let mut names: Vec<_> = std::fs::read_dir(&euroc).map(|d| d.filter_map(|e| e.ok()).map(|e| e.path()).collect()).unwrap_or_default();
+    let mut names: Vec<_> = std::fs::read_dir(&euroc)
+        .map(|d| d.filter_map(|e| e.ok()).map(|e| e.path()).collect())
+        .unwrap_or_default();
     names.sort();
     for p in names.into_iter().step_by(4) {
         out.push(("euroc".to_string(), p));
@@ -28,14 +30,19 @@ fn frames(data: &Path) -> Vec<(String, PathBuf)> {
 }
 
 fn main() -> anyhow::Result<()> {
-    let data = std::env::args().nth(1).map(PathBuf::from).unwrap_or_else(|| PathBuf::from("../shared/data"));
+    let data = std::env::args()
+        .nth(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from("../shared/data"));
     let mut model = SuperPointModel::load(&default_model_path(), None, 0)?;
     let mut cached = vec![];
     for (set, path) in frames(&data) {
         let img = GrayImage::load(&path)?;
         let (w, h) = (img.width(), img.height());
         let (pw, ph) = (w.div_ceil(8) * 8, h.div_ceil(8) * 8);
-        let input = Array4::from_shape_fn((1, 1, ph, pw), |(_, _, y, x)| img.view().get(x.min(w - 1), y.min(h - 1)) as f32 / 255.0);
+        let input = Array4::from_shape_fn((1, 1, ph, pw), |(_, _, y, x)| {
+            img.view().get(x.min(w - 1), y.min(h - 1)) as f32 / 255.0
+        });
         let scores: Array2<f32> = model.run(input.view(), |s, _| s.to_owned())?;
         cached.push((set, img, scores));
     }
@@ -43,20 +50,38 @@ fn main() -> anyhow::Result<()> {
     let thr = 0.005f32;
     for mode in ["none", "cell1", "cell2", "cell3"] {
         for contrast in [0.0f32, 5.0, 6.0, 8.0] {
-            let mut stats = std::collections::BTreeMap::<String, (Vec<(f32, f32)>, usize, usize)>::new();
+            let mut stats =
+                std::collections::BTreeMap::<String, (Vec<(f32, f32)>, usize, usize)>::new();
             for (set, img, scores) in &cached {
                 let (w, h) = (img.width(), img.height());
-                let region = ValidRegion { width: w, height: h, border: 8 };
+                let region = ValidRegion {
+                    width: w,
+                    height: h,
+                    border: 8,
+                };
                 let cands = match mode {
                     "none" => nms_candidates(scores.view(), |_, _, s| s, thr, 4, region),
                     m if m.starts_with("cell") => {
                         let support: usize = m[4..].parse()?;
-                        let mask = LatticeMask::estimate(scores.view(), w, h, thr, support, &mut vec![]);
-                        nms_candidates(scores.view(), |x, y, s| if mask.is_suppressed(x, y) { 0.0 } else { s }, thr, 4, region)
+                        let mask =
+                            LatticeMask::estimate(scores.view(), w, h, thr, support, &mut vec![]);
+                        nms_candidates(
+                            scores.view(),
+                            |x, y, s| if mask.is_suppressed(x, y) { 0.0 } else { s },
+                            thr,
+                            4,
+                            region,
+                        )
                     }
                     _ => anyhow::bail!("unknown mode {mode}"),
                 };
-                let cands: Vec<_> = cands.into_iter().filter(|c| contrast <= 0.0 || local_contrast(img.view(), c.x as usize, c.y as usize, 4) >= contrast).collect();
+                let cands: Vec<_> = cands
+                    .into_iter()
+                    .filter(|c| {
+                        contrast <= 0.0
+                            || local_contrast(img.view(), c.x as usize, c.y as usize, 4) >= contrast
+                    })
+                    .collect();
                 let sel = anms::select(AnmsMethod::Kdtree, &cands, 1000, w, h);
                 let e = stats.entry(set.clone()).or_default();
                 e.0.extend(sel.iter().map(|&i| (cands[i].x, cands[i].y)));
@@ -67,7 +92,12 @@ fn main() -> anyhow::Result<()> {
                 .iter()
                 .map(|(set, (pts, n, nc))| {
                     let (f, p) = dominant_phase_fraction(pts.iter().copied());
-                    format!("{set}: phase {p:?} {:.1}% kps/frame {:.0} cands/frame {:.0}", 100.0 * f, pts.len() as f64 / *n as f64, *nc as f64 / *n as f64)
+                    format!(
+                        "{set}: phase {p:?} {:.1}% kps/frame {:.0} cands/frame {:.0}",
+                        100.0 * f,
+                        pts.len() as f64 / *n as f64,
+                        *nc as f64 / *n as f64
+                    )
                 })
                 .collect();
             println!("{mode:6} contrast {contrast:3}: {}", line.join(" | "));

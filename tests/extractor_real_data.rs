@@ -8,7 +8,8 @@ use spslam::features::periodic::dominant_phase_fraction;
 use spslam::features::{AnmsMethod, ExtractorConfig, Features, PeriodicFilterConfig};
 
 fn same_row_fraction(left: &Features, right: &Features) -> (f64, usize) {
-    let matches = mutual_nearest_neighbours(&left.descriptors, &right.descriptors, left.descriptor_len);
+    let matches =
+        mutual_nearest_neighbours(&left.descriptors, &right.descriptors, left.descriptor_len);
     let same_row = matches
         .iter()
         .filter(|&&(i, j)| (left.keypoints[i].y - right.keypoints[j].y).abs() <= 2.0)
@@ -18,27 +19,46 @@ fn same_row_fraction(left: &Features, right: &Features) -> (f64, usize) {
 
 #[test]
 fn kitti_stereo_matches_lie_on_the_same_row_and_the_filter_does_not_hurt() {
-    let Some(data) = setup("kitti_stereo_matches_lie_on_the_same_row") else { return };
+    let Some(data) = setup("kitti_stereo_matches_lie_on_the_same_row") else {
+        return;
+    };
     let mut with_filter = extractor(ExtractorConfig::default());
     let off = ExtractorConfig {
-        periodic_filter: PeriodicFilterConfig { enabled: false, ..Default::default() },
+        periodic_filter: PeriodicFilterConfig {
+            enabled: false,
+            ..Default::default()
+        },
         ..ExtractorConfig::default()
     };
     let mut without_filter = extractor(off);
     for frame in [0, 25, 50] {
         let (left, right) = (kitti_frame(&data, 0, frame), kitti_frame(&data, 1, frame));
-        let (l_on, r_on) = (with_filter.extract(left.view()).unwrap(), with_filter.extract(right.view()).unwrap());
-        let (l_off, r_off) =
-            (without_filter.extract(left.view()).unwrap(), without_filter.extract(right.view()).unwrap());
+        let (l_on, r_on) = (
+            with_filter.extract(left.view()).unwrap(),
+            with_filter.extract(right.view()).unwrap(),
+        );
+        let (l_off, r_off) = (
+            without_filter.extract(left.view()).unwrap(),
+            without_filter.extract(right.view()).unwrap(),
+        );
         let (on, n_on) = same_row_fraction(&l_on, &r_on);
         let (off, n_off) = same_row_fraction(&l_off, &r_off);
         println!(
             "KITTI 06 frame {frame}: same-row fraction {:.1}% of {n_on} mutual matches with the filter, {:.1}% of {n_off} without; keypoints {}/{} vs {}/{}",
             100.0 * on, 100.0 * off, l_on.len(), r_on.len(), l_off.len(), r_off.len()
         );
-        assert!(on >= 0.80, "frame {frame}: same-row fraction {on:.3} < 0.80");
-        assert!(on >= off - 0.01, "frame {frame}: the filter lowered the same-row fraction ({on:.3} vs {off:.3})");
-        assert!(l_on.len() >= l_off.len() && r_on.len() >= r_off.len(), "the filter lowered the keypoint count");
+        assert!(
+            on >= 0.80,
+            "frame {frame}: same-row fraction {on:.3} < 0.80"
+        );
+        assert!(
+            on >= off - 0.01,
+            "frame {frame}: the filter lowered the same-row fraction ({on:.3} vs {off:.3})"
+        );
+        assert!(
+            l_on.len() >= l_off.len() && r_on.len() >= r_off.len(),
+            "the filter lowered the keypoint count"
+        );
     }
 }
 
@@ -53,30 +73,52 @@ fn covered_cells(f: &Features, width: usize, height: usize) -> f64 {
 
 #[test]
 fn anms_covers_more_grid_cells_than_top_n() {
-    let Some(data) = setup("anms_covers_more_grid_cells_than_top_n") else { return };
+    let Some(data) = setup("anms_covers_more_grid_cells_than_top_n") else {
+        return;
+    };
     let image = kitti_frame(&data, 0, 10);
     let mut coverage = vec![];
     for anms in [AnmsMethod::None, AnmsMethod::Kdtree, AnmsMethod::Ssc] {
-        let mut ex = extractor(ExtractorConfig { anms, ..ExtractorConfig::default() });
+        let mut ex = extractor(ExtractorConfig {
+            anms,
+            ..ExtractorConfig::default()
+        });
         let f = ex.extract(image.view()).unwrap();
         assert_eq!(f.len(), 1000, "{anms}: expected 1000 keypoints");
         let c = covered_cells(&f, image.width(), image.height());
         println!("{anms}: {:.1}% of 32x32 cells hold a keypoint", 100.0 * c);
         coverage.push(c);
     }
-    assert!(coverage[1] > coverage[0], "kd-tree ANMS {:.3} <= top-N {:.3}", coverage[1], coverage[0]);
-    assert!(coverage[2] > coverage[0], "SSC {:.3} <= top-N {:.3}", coverage[2], coverage[0]);
+    assert!(
+        coverage[1] > coverage[0],
+        "kd-tree ANMS {:.3} <= top-N {:.3}",
+        coverage[1],
+        coverage[0]
+    );
+    assert!(
+        coverage[2] > coverage[0],
+        "SSC {:.3} <= top-N {:.3}",
+        coverage[2],
+        coverage[0]
+    );
 }
 
 #[test]
 fn periodic_filter_removes_the_dominant_sub_cell_phase() {
-    let Some(data) = setup("periodic_filter_removes_the_dominant_sub_cell_phase") else { return };
+    let Some(data) = setup("periodic_filter_removes_the_dominant_sub_cell_phase") else {
+        return;
+    };
     let mut on = extractor(ExtractorConfig::default());
     let mut off = extractor(ExtractorConfig {
-        periodic_filter: PeriodicFilterConfig { enabled: false, ..Default::default() },
+        periodic_filter: PeriodicFilterConfig {
+            enabled: false,
+            ..Default::default()
+        },
         ..ExtractorConfig::default()
     });
-    let kitti: Vec<_> = (0..51).map(|i| data.join(format!("kitti/sequences/06/image_0/{i:06}.png"))).collect();
+    let kitti: Vec<_> = (0..51)
+        .map(|i| data.join(format!("kitti/sequences/06/image_0/{i:06}.png")))
+        .collect();
     let euroc = euroc_cam0_paths(&data);
     assert_eq!(euroc.len(), 95);
     for (name, paths) in [("KITTI 06", kitti), ("EuRoC V1_01", euroc)] {
@@ -101,27 +143,49 @@ fn periodic_filter_removes_the_dominant_sub_cell_phase() {
             n_before as f64 / paths.len() as f64,
             n_after as f64 / paths.len() as f64
         );
-        assert!(fa <= 0.05, "{name}: {:.1}% of keypoints on phase {pa:?} after the filter", 100.0 * fa);
-        assert!(n_after >= n_before, "{name}: the filter lowered the keypoint count ({n_after} < {n_before})");
+        assert!(
+            fa <= 0.05,
+            "{name}: {:.1}% of keypoints on phase {pa:?} after the filter",
+            100.0 * fa
+        );
+        assert!(
+            n_after >= n_before,
+            "{name}: the filter lowered the keypoint count ({n_after} < {n_before})"
+        );
     }
 }
 
 #[test]
 fn pyramid_levels_follow_orb_slam3_quotas_and_coordinates() {
-    let Some(data) = setup("pyramid_levels_follow_orb_slam3_quotas") else { return };
+    let Some(data) = setup("pyramid_levels_follow_orb_slam3_quotas") else {
+        return;
+    };
     let image = kitti_frame(&data, 0, 0);
-    let config = ExtractorConfig { n_levels: 4, scale_factor: 1.2, ..ExtractorConfig::default() };
+    let config = ExtractorConfig {
+        n_levels: 4,
+        scale_factor: 1.2,
+        ..ExtractorConfig::default()
+    };
     let mut ex = extractor(config);
     let f = ex.extract(image.view()).unwrap();
     let quotas = ex.scale_tables().features_per_level.clone();
     assert_eq!(quotas.iter().sum::<usize>(), 1000);
     for (level, &quota) in quotas.iter().enumerate() {
-        let on_level: Vec<_> = f.keypoints.iter().filter(|k| k.octave == level as i32).collect();
+        let on_level: Vec<_> = f
+            .keypoints
+            .iter()
+            .filter(|k| k.octave == level as i32)
+            .collect();
         assert_eq!(on_level.len(), quota, "level {level}");
         let scale = ex.scale_tables().scale_factors[level];
         for k in on_level {
             assert!((k.size - 31.0 * scale).abs() < 1e-4);
-            assert!(k.x >= 0.0 && k.x < image.width() as f32 && k.y >= 0.0 && k.y < image.height() as f32);
+            assert!(
+                k.x >= 0.0
+                    && k.x < image.width() as f32
+                    && k.y >= 0.0
+                    && k.y < image.height() as f32
+            );
             assert!((0.0..360.0).contains(&k.angle));
             assert!(k.response > 0.0);
         }
@@ -137,7 +201,9 @@ fn pyramid_levels_follow_orb_slam3_quotas_and_coordinates() {
 
 #[test]
 fn extraction_is_deterministic_and_honours_any_stride_and_size() {
-    let Some(data) = setup("extraction_is_deterministic") else { return };
+    let Some(data) = setup("extraction_is_deterministic") else {
+        return;
+    };
     let image = kitti_frame(&data, 0, 5);
     let mut ex = extractor(ExtractorConfig::default());
     let a = ex.extract(image.view()).unwrap();
@@ -159,9 +225,14 @@ fn extraction_is_deterministic_and_honours_any_stride_and_size() {
 
     // A crop whose size is not a multiple of 8: every keypoint inside it.
     let (cw, ch) = (901, 277);
-    let crop: Vec<u8> = (0..ch).flat_map(|y| image.view().row(y)[..cw].to_vec()).collect();
+    let crop: Vec<u8> = (0..ch)
+        .flat_map(|y| image.view().row(y)[..cw].to_vec())
+        .collect();
     let crop = spslam::features::GrayImageView::new(&crop, cw, ch, cw).unwrap();
     let f = ex.extract(crop).unwrap();
     assert!(f.len() > 500);
-    assert!(f.keypoints.iter().all(|k| k.x >= 0.0 && k.x < cw as f32 && k.y >= 0.0 && k.y < ch as f32));
+    assert!(f
+        .keypoints
+        .iter()
+        .all(|k| k.x >= 0.0 && k.x < cw as f32 && k.y >= 0.0 && k.y < ch as f32));
 }

@@ -9,7 +9,11 @@ use spslam::features::periodic::dominant_phase_fraction;
 use spslam::features::{AnmsMethod, ExtractorConfig, Features, GrayImage, SuperPointExtractor};
 
 #[derive(Parser)]
-#[command(name = "spslam", version, about = "SuperPoint-SLAM3 in Rust: SuperPoint + ANMS features and SLAM")]
+#[command(
+    name = "spslam",
+    version,
+    about = "SuperPoint-SLAM3 in Rust: SuperPoint + ANMS features and SLAM"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -66,7 +70,9 @@ struct ExtractArgs {
 
 fn main() -> std::process::ExitCode {
     tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()))
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
@@ -102,7 +108,9 @@ fn run_extract(args: ExtractArgs) -> Result<()> {
     let several = args.images.len() > 1;
     for path in &args.images {
         let image = GrayImage::load(path)?;
-        let features = extractor.extract(image.view()).with_context(|| format!("extraction failed on {}", path.display()))?;
+        let features = extractor
+            .extract(image.view())
+            .with_context(|| format!("extraction failed on {}", path.display()))?;
         print_summary(path, &image, &features);
         if let Some(out) = &args.json {
             let out = output_path(out, path, several)?;
@@ -141,7 +149,10 @@ fn output_path(out: &Path, image: &Path, several: bool) -> Result<PathBuf> {
     if !several {
         return Ok(out.to_path_buf());
     }
-    let stem = image.file_stem().and_then(|s| s.to_str()).unwrap_or("image");
+    let stem = image
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("image");
     let out_stem = out.file_stem().and_then(|s| s.to_str()).unwrap_or("out");
     let ext = out.extension().and_then(|s| s.to_str()).unwrap_or("");
     if ext.is_empty() {
@@ -165,7 +176,8 @@ fn write_json(path: &Path, f: &Features) -> Result<()> {
             "total": f.timings.total_ms,
         },
     });
-    let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let file =
+        std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     serde_json::to_writer(std::io::BufWriter::new(file), &value)
         .with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())

@@ -332,19 +332,24 @@ fn radii_brute_force(candidates: &[Candidate], order: &[usize]) -> Vec<f32> {
 /// `w`, the image (`cols` × `rows`) is divided into square cells of side
 /// `w / 2`; each candidate whose cell is not yet covered is kept and covers the
 /// cells within two cells of its own (a square of side about `2w`). A binary
-/// search on the integer `w` looks for a kept count within
-/// `[round(n (1 - tolerance)), round(n (1 + tolerance))]`, starting from
-/// `low = max(1, floor(sqrt(len / n)))` and `high` = the positive root of the
-/// reference's quadratic (clamped to `[low, max(cols, rows)]`; `max(cols, rows)`
-/// when the root is undefined, e.g. `n == 1`). As in the reference, when the
-/// search ends without a hit, the result of its last step is used.
+/// search on the integer `w` runs from `low = max(1, floor(sqrt(len / n)))` to
+/// `high` = the positive root of the reference's quadratic (clamped to
+/// `[low, max(cols, rows)]`; `max(cols, rows)` when the root is undefined, e.g.
+/// `n == 1`).
 ///
+/// Unlike the reference, which stops at any width keeping a count within
+/// `n (1 ± tolerance)`, the search keeps the widest grid that keeps at least
+/// `n`, and stops early only when that count is within `n (1 + tolerance)` and
+/// the grid removed at least one candidate. With a candidate pool close to
+/// `n` (usual after NMS), the reference would stop at a grid that removes
+/// nothing and so return the top-N; this version spreads the points instead.
+
 /// Differences from the reference, so that exactly `min(n, len)` indices come
 /// back:
 /// - more than `n` kept: truncated to the first `n` (selection order is
 ///   strength order, so these are the `n` strongest kept ones);
-/// - fewer than `n` kept: filled up with the strongest candidates that were not
-///   kept, appended in strength order;
+/// - fewer than `n` kept (only when no width kept `n`): filled up with the
+///   strongest candidates that were not kept, appended in strength order;
 /// - `n >= len`: every candidate, in strength order.
 ///
 /// Other robustness choices: `tolerance` is clamped to `[0, 1]` (NaN → 0);
@@ -381,7 +386,6 @@ pub fn anms_ssc(
     } else {
         f64::from(tolerance.clamp(0.0, 1.0))
     };
-    let k_min = (k - k * tol).round();
     let k_max = (k + k * tol).round();
 
     // Binary search range from the reference's quadratic.
@@ -417,6 +421,8 @@ pub fn anms_ssc(
     let mut grid: Vec<bool> = Vec::new();
     let mut result: Vec<usize> = Vec::with_capacity(len);
     let mut prev_width = -1_i64;
+    let mut best: Vec<usize> = Vec::new();
+    let mut best_width = 0_i64;
     // The search range halves every step; the cap only guards against surprises.
     for _ in 0..128 {
         let width = low + (high - low) / 2;
@@ -458,14 +464,25 @@ pub fn anms_ssc(
             }
         }
         let kept = result.len() as f64;
-        if kept >= k_min && kept <= k_max {
-            break;
-        } else if kept < k_min {
-            high = width.saturating_sub(1);
-        } else {
+        if kept >= k {
+            // Remember the widest grid that still keeps at least n.
+            if best_width < width {
+                best_width = width;
+                best.clone_from(&result);
+            }
+            // Stop within the tolerance, but only once the grid has removed
+            // something: keeping every candidate would just be top-N.
+            if kept <= k_max && result.len() < len {
+                break;
+            }
             low = width.saturating_add(1);
+        } else {
+            high = width.saturating_sub(1);
         }
         prev_width = width;
+    }
+    if best_width > 0 {
+        std::mem::swap(&mut result, &mut best);
     }
 
     result.truncate(n);

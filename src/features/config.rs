@@ -64,7 +64,12 @@ pub struct PeriodicFilterConfig {
 
 impl Default for PeriodicFilterConfig {
     fn default() -> Self {
-        Self { enabled: true, lattice_min_support: 1, min_contrast: 5.0, contrast_radius: 4 }
+        Self {
+            enabled: true,
+            lattice_min_support: 1,
+            min_contrast: 5.0,
+            contrast_radius: 4,
+        }
     }
 }
 
@@ -163,7 +168,11 @@ impl ExtractorConfig {
     /// Checks every value; the error names the first one out of range.
     pub fn validate(&self) -> Result<(), FeatureError> {
         fn bad(name: &'static str, value: impl ToString, expected: &'static str) -> FeatureError {
-            FeatureError::InvalidConfig { name, value: value.to_string(), expected }
+            FeatureError::InvalidConfig {
+                name,
+                value: value.to_string(),
+                expected,
+            }
         }
         if self.n_features == 0 || self.n_features > 1_000_000 {
             return Err(bad("n_features", self.n_features, "between 1 and 1000000"));
@@ -177,8 +186,15 @@ impl ExtractorConfig {
         if !(self.threshold.is_finite() && self.threshold > 0.0 && self.threshold < 1.0) {
             return Err(bad("threshold", self.threshold, "a probability in (0, 1)"));
         }
-        if !(self.min_threshold.is_finite() && self.min_threshold > 0.0 && self.min_threshold <= self.threshold) {
-            return Err(bad("min_threshold", self.min_threshold, "a probability in (0, threshold]"));
+        if !(self.min_threshold.is_finite()
+            && self.min_threshold > 0.0
+            && self.min_threshold <= self.threshold)
+        {
+            return Err(bad(
+                "min_threshold",
+                self.min_threshold,
+                "a probability in (0, threshold]",
+            ));
         }
         if self.nms_radius > 64 {
             return Err(bad("nms_radius", self.nms_radius, "at most 64 px"));
@@ -188,13 +204,25 @@ impl ExtractorConfig {
         }
         let p = &self.periodic_filter;
         if p.lattice_min_support > 4 {
-            return Err(bad("periodic_filter.lattice_min_support", p.lattice_min_support, "between 0 (off) and 4"));
+            return Err(bad(
+                "periodic_filter.lattice_min_support",
+                p.lattice_min_support,
+                "between 0 (off) and 4",
+            ));
         }
         if !(p.min_contrast.is_finite() && p.min_contrast >= 0.0) {
-            return Err(bad("periodic_filter.min_contrast", p.min_contrast, "a number >= 0"));
+            return Err(bad(
+                "periodic_filter.min_contrast",
+                p.min_contrast,
+                "a number >= 0",
+            ));
         }
         if p.contrast_radius == 0 || p.contrast_radius > 32 {
-            return Err(bad("periodic_filter.contrast_radius", p.contrast_radius, "between 1 and 32 px"));
+            return Err(bad(
+                "periodic_filter.contrast_radius",
+                p.contrast_radius,
+                "between 1 and 32 px",
+            ));
         }
         if self.threads > 1024 {
             return Err(bad("threads", self.threads, "at most 1024 (0 = automatic)"));

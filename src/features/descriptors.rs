@@ -33,7 +33,12 @@ pub fn sample_descriptors(
             let (fu, fv) = (u - u0 as f32, v - v0 as f32);
             (
                 [v0 * wc + u0, v0 * wc + u1, v1 * wc + u0, v1 * wc + u1],
-                [(1.0 - fu) * (1.0 - fv), fu * (1.0 - fv), (1.0 - fu) * fv, fu * fv],
+                [
+                    (1.0 - fu) * (1.0 - fv),
+                    fu * (1.0 - fv),
+                    (1.0 - fu) * fv,
+                    fu * fv,
+                ],
             )
         })
         .collect();
@@ -51,7 +56,10 @@ pub fn sample_descriptors(
             None => {
                 for (o, (idx, w)) in plane_out.iter_mut().zip(&taps) {
                     let at = |i: usize| plane[[i / wc, i % wc]];
-                    *o = w[0] * at(idx[0]) + w[1] * at(idx[1]) + w[2] * at(idx[2]) + w[3] * at(idx[3]);
+                    *o = w[0] * at(idx[0])
+                        + w[1] * at(idx[1])
+                        + w[2] * at(idx[2])
+                        + w[3] * at(idx[3]);
                 }
             }
         }
@@ -81,7 +89,12 @@ mod tests {
         desc[[1, 0, 1]] = 1.0; // cell (0,1) = (0, 1)
         let mut out = vec![];
         let mut scratch = vec![];
-        sample_descriptors(desc.view(), &[(3.5, 3.5), (11.5, 3.5), (7.5, 3.5)], &mut out, &mut scratch);
+        sample_descriptors(
+            desc.view(),
+            &[(3.5, 3.5), (11.5, 3.5), (7.5, 3.5)],
+            &mut out,
+            &mut scratch,
+        );
         assert_eq!(&out[0..2], &[1.0, 0.0]);
         assert_eq!(&out[2..4], &[0.0, 1.0]);
         let h = std::f32::consts::FRAC_1_SQRT_2;
@@ -90,7 +103,9 @@ mod tests {
 
     #[test]
     fn rows_are_unit_norm_and_positions_clamp() {
-        let desc = Array3::from_shape_fn((16, 4, 5), |(c, i, j)| (c + 2 * i + 3 * j) as f32 * 0.1 - 0.7);
+        let desc = Array3::from_shape_fn((16, 4, 5), |(c, i, j)| {
+            (c + 2 * i + 3 * j) as f32 * 0.1 - 0.7
+        });
         let pts = [(0.0, 0.0), (39.0, 31.0), (17.2, 9.9), (-5.0, 100.0)];
         let (mut out, mut scratch) = (vec![], vec![]);
         sample_descriptors(desc.view(), &pts, &mut out, &mut scratch);

@@ -12,7 +12,9 @@ use super::nms::{nms_candidates, ValidRegion};
 use super::orientation::{CircularPatch, PATCH_SIZE};
 use super::periodic::{reject_low_contrast, LatticeMask};
 use super::pyramid::{build_pyramid, ScaleTables};
-use super::{ExtractorConfig, FeatureError, Features, GrayImage, GrayImageView, Keypoint, StageTimings};
+use super::{
+    ExtractorConfig, FeatureError, Features, GrayImage, GrayImageView, Keypoint, StageTimings,
+};
 
 /// What the periodic-artefact filter did on one extraction (for diagnostics).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -46,7 +48,10 @@ pub struct SuperPointExtractor {
 
 impl std::fmt::Debug for SuperPointExtractor {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("SuperPointExtractor").field("config", &self.config).field("model", &self.model).finish()
+        f.debug_struct("SuperPointExtractor")
+            .field("config", &self.config)
+            .field("model", &self.model)
+            .finish()
     }
 }
 
@@ -54,7 +59,11 @@ impl SuperPointExtractor {
     /// Validates the config, loads ONNX Runtime and the model.
     pub fn new(config: ExtractorConfig) -> Result<Self, FeatureError> {
         config.validate()?;
-        let model = SuperPointModel::load(&config.model_path, config.ort_library_path.as_deref(), config.threads)?;
+        let model = SuperPointModel::load(
+            &config.model_path,
+            config.ort_library_path.as_deref(),
+            config.threads,
+        )?;
         let tables = ScaleTables::new(config.n_features, config.scale_factor, config.n_levels);
         Ok(Self {
             config,
@@ -96,16 +105,29 @@ impl SuperPointExtractor {
     pub fn extract(&mut self, image: GrayImageView<'_>) -> Result<Features, FeatureError> {
         let (width, height) = (image.width(), image.height());
         if width < MIN_IMAGE_SIDE || height < MIN_IMAGE_SIDE {
-            return Err(FeatureError::ImageTooSmall { width, height, min_side: MIN_IMAGE_SIDE });
+            return Err(FeatureError::ImageTooSmall {
+                width,
+                height,
+                min_side: MIN_IMAGE_SIDE,
+            });
         }
         let mut timings = StageTimings::default();
         let t = Instant::now();
-        let pyramid = if self.tables.n_levels() > 1 { build_pyramid(image, &self.tables)? } else { Vec::new() };
+        let pyramid = if self.tables.n_levels() > 1 {
+            build_pyramid(image, &self.tables)?
+        } else {
+            Vec::new()
+        };
         timings.preprocess_ms += ms(t);
 
-        let mut features = Features { descriptor_len: self.model.descriptor_len(), ..Features::default() };
+        let mut features = Features {
+            descriptor_len: self.model.descriptor_len(),
+            ..Features::default()
+        };
         features.keypoints.reserve(self.config.n_features);
-        features.descriptors.reserve(self.config.n_features * features.descriptor_len);
+        features
+            .descriptors
+            .reserve(self.config.n_features * features.descriptor_len);
         self.last_report = PeriodicFilterReport::default();
         for level in 0..self.tables.n_levels() {
             let level_image = match level {
@@ -116,7 +138,10 @@ impl SuperPointExtractor {
                 },
             };
             let quota = self.tables.features_per_level[level];
-            if quota == 0 || level_image.width() < MIN_IMAGE_SIDE || level_image.height() < MIN_IMAGE_SIDE {
+            if quota == 0
+                || level_image.width() < MIN_IMAGE_SIDE
+                || level_image.height() < MIN_IMAGE_SIDE
+            {
                 continue;
             }
             self.extract_level(level, level_image, quota, &mut features, &mut timings)?;
@@ -150,20 +175,35 @@ impl SuperPointExtractor {
         let patch = &self.patch;
         let scale = self.tables.scale_factors[level];
         let report = &mut self.last_report;
-        let region = ValidRegion { width: image.width(), height: image.height(), border: config.border };
+        let region = ValidRegion {
+            width: image.width(),
+            height: image.height(),
+            border: config.border,
+        };
         self.model.run(input, |scores, desc| {
             timings.inference_ms += ms(t_inference);
 
             let t = Instant::now();
             let filter = &config.periodic_filter;
-            let detect = |threshold: f32, radius: usize, cell_max: &mut Vec<(u8, f32)>| -> (Vec<Candidate>, usize, usize) {
+            let detect = |threshold: f32,
+                          radius: usize,
+                          cell_max: &mut Vec<(u8, f32)>|
+             -> (Vec<Candidate>, usize, usize) {
                 let mask = if filter.enabled && filter.lattice_min_support > 0 {
                     let (w, h) = (image.width(), image.height());
-                    LatticeMask::estimate(scores, w, h, threshold, filter.lattice_min_support, cell_max)
+                    LatticeMask::estimate(
+                        scores,
+                        w,
+                        h,
+                        threshold,
+                        filter.lattice_min_support,
+                        cell_max,
+                    )
                 } else {
                     LatticeMask::empty()
                 };
-                let adjust = |x: usize, y: usize, s: f32| if mask.is_suppressed(x, y) { 0.0 } else { s };
+                let adjust =
+                    |x: usize, y: usize, s: f32| if mask.is_suppressed(x, y) { 0.0 } else { s };
                 let mut c = nms_candidates(scores, adjust, threshold, radius, region);
                 let before = c.len();
                 reject_low_contrast(&mut c, image, filter);
@@ -173,7 +213,8 @@ impl SuperPointExtractor {
             // As ORB-SLAM3 retries FAST with minThFAST: the fallbacks are tried
             // only while the level has fewer candidates than its quota.
             let first = (config.threshold, config.nms_radius);
-            let (mut candidates, mut rejected, mut lattice) = detect(first.0, first.1, &mut scratch.cell_max);
+            let (mut candidates, mut rejected, mut lattice) =
+                detect(first.0, first.1, &mut scratch.cell_max);
             for (threshold, radius) in fallback_detections(config) {
                 if candidates.len() >= quota {
                     break;
@@ -188,12 +229,20 @@ impl SuperPointExtractor {
             timings.decode_nms_ms += ms(t);
 
             let t = Instant::now();
-            let selected = anms::select(config.anms, &candidates, quota, image.width(), image.height());
+            let selected = anms::select(
+                config.anms,
+                &candidates,
+                quota,
+                image.width(),
+                image.height(),
+            );
             timings.anms_ms += ms(t);
 
             let t = Instant::now();
             scratch.points.clear();
-            scratch.points.extend(selected.iter().map(|&i| (candidates[i].x, candidates[i].y)));
+            scratch
+                .points
+                .extend(selected.iter().map(|&i| (candidates[i].x, candidates[i].y)));
             super::descriptors::sample_descriptors(
                 desc,
                 &scratch.points,
@@ -241,9 +290,14 @@ fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize,
 fn fallback_detections(config: &ExtractorConfig) -> impl Iterator<Item = (f32, usize)> {
     let (first, min, r) = (config.threshold, config.min_threshold, config.nms_radius);
     let half_radius = (r / 2).max(1).min(r);
-    [(min, r), (min / 4.0, r), (min / 16.0, r), (min / 16.0, half_radius)]
-        .into_iter()
-        .filter(move |&(t, radius)| t < first || radius < r)
+    [
+        (min, r),
+        (min / 4.0, r),
+        (min / 16.0, r),
+        (min / 16.0, half_radius),
+    ]
+    .into_iter()
+    .filter(move |&(t, radius)| t < first || radius < r)
 }
 
 fn ms(since: Instant) -> f64 {
@@ -251,7 +305,10 @@ fn ms(since: Instant) -> f64 {
 }
 
 /// Loads an image file and extracts features from it (a convenience for tools).
-pub fn extract_file(extractor: &mut SuperPointExtractor, path: &std::path::Path) -> Result<Features, FeatureError> {
+pub fn extract_file(
+    extractor: &mut SuperPointExtractor,
+    path: &std::path::Path,
+) -> Result<Features, FeatureError> {
     let image = GrayImage::load(path)?;
     extractor.extract(image.view())
 }

@@ -21,21 +21,41 @@ pub struct GrayImageView<'a> {
 
 impl<'a> GrayImageView<'a> {
     /// Wraps a buffer; checks sizes, the stride and the buffer length.
-    pub fn new(data: &'a [u8], width: usize, height: usize, stride: usize) -> Result<Self, FeatureError> {
+    pub fn new(
+        data: &'a [u8],
+        width: usize,
+        height: usize,
+        stride: usize,
+    ) -> Result<Self, FeatureError> {
         if width == 0 || height == 0 {
             return Err(FeatureError::EmptyImage { width, height });
         }
         if width > MAX_IMAGE_SIDE || height > MAX_IMAGE_SIDE {
-            return Err(FeatureError::ImageTooLarge { width, height, max_side: MAX_IMAGE_SIDE });
+            return Err(FeatureError::ImageTooLarge {
+                width,
+                height,
+                max_side: MAX_IMAGE_SIDE,
+            });
         }
         if stride < width {
             return Err(FeatureError::StrideTooSmall { stride, width });
         }
         let required = stride * (height - 1) + width;
         if data.len() < required {
-            return Err(FeatureError::BufferTooSmall { required, actual: data.len(), width, height, stride });
+            return Err(FeatureError::BufferTooSmall {
+                required,
+                actual: data.len(),
+                width,
+                height,
+                stride,
+            });
         }
-        Ok(Self { data, width, height, stride })
+        Ok(Self {
+            data,
+            width,
+            height,
+            stride,
+        })
     }
 
     /// Width in pixels.
@@ -69,7 +89,11 @@ impl<'a> GrayImageView<'a> {
         for y in 0..self.height {
             data.extend_from_slice(self.row(y));
         }
-        GrayImage { data, width: self.width, height: self.height }
+        GrayImage {
+            data,
+            width: self.width,
+            height: self.height,
+        }
     }
 }
 
@@ -85,20 +109,31 @@ impl GrayImage {
     /// Takes a contiguous row-major buffer of `width * height` bytes.
     pub fn from_vec(data: Vec<u8>, width: usize, height: usize) -> Result<Self, FeatureError> {
         GrayImageView::new(&data, width, height, width)?;
-        Ok(Self { data, width, height })
+        Ok(Self {
+            data,
+            width,
+            height,
+        })
     }
 
     /// Reads an image file (any format OpenCV decodes) and converts it to gray.
     pub fn load(path: &Path) -> Result<Self, FeatureError> {
-        let read_err = |reason: String| FeatureError::ImageRead { path: path.to_path_buf(), reason };
+        let read_err = |reason: String| FeatureError::ImageRead {
+            path: path.to_path_buf(),
+            reason,
+        };
         if !path.is_file() {
             return Err(read_err("no such file".into()));
         }
-        let name = path.to_str().ok_or_else(|| read_err("path is not valid UTF-8".into()))?;
+        let name = path
+            .to_str()
+            .ok_or_else(|| read_err("path is not valid UTF-8".into()))?;
         let mat = opencv::imgcodecs::imread(name, opencv::imgcodecs::IMREAD_GRAYSCALE)
             .map_err(|e| read_err(e.to_string()))?;
         if mat.empty() {
-            return Err(read_err("OpenCV could not decode it (unknown format or corrupt file)".into()));
+            return Err(read_err(
+                "OpenCV could not decode it (unknown format or corrupt file)".into(),
+            ));
         }
         Self::from_mat(&mat)
     }
@@ -109,19 +144,31 @@ impl GrayImage {
         let gray = match mat.typ() {
             t if t == CV_8UC1 => mat.try_clone()?,
             t if t == CV_8UC3 || t == CV_8UC4 => {
-                let code = if t == CV_8UC3 { opencv::imgproc::COLOR_BGR2GRAY } else { opencv::imgproc::COLOR_BGRA2GRAY };
+                let code = if t == CV_8UC3 {
+                    opencv::imgproc::COLOR_BGR2GRAY
+                } else {
+                    opencv::imgproc::COLOR_BGRA2GRAY
+                };
                 let mut g = Mat::default();
                 opencv::imgproc::cvt_color_def(mat, &mut g, code)?;
                 g
             }
-            t => return Err(FeatureError::UnsupportedImageType(opencv::core::type_to_string(t)?)),
+            t => {
+                return Err(FeatureError::UnsupportedImageType(
+                    opencv::core::type_to_string(t)?,
+                ))
+            }
         };
         let width = gray.cols().max(0) as usize;
         let height = gray.rows().max(0) as usize;
         if width == 0 || height == 0 {
             return Err(FeatureError::EmptyImage { width, height });
         }
-        let gray = if gray.is_continuous() { gray } else { gray.try_clone()? };
+        let gray = if gray.is_continuous() {
+            gray
+        } else {
+            gray.try_clone()?
+        };
         let data = gray.data_bytes()?.to_vec();
         Self::from_vec(data, width, height)
     }
@@ -134,7 +181,12 @@ impl GrayImage {
 
     /// A borrowed view.
     pub fn view(&self) -> GrayImageView<'_> {
-        GrayImageView { data: &self.data, width: self.width, height: self.height, stride: self.width }
+        GrayImageView {
+            data: &self.data,
+            width: self.width,
+            height: self.height,
+            stride: self.width,
+        }
     }
 
     /// Width in pixels.

@@ -37,33 +37,58 @@ impl std::fmt::Debug for SuperPointModel {
 impl SuperPointModel {
     /// Loads the model and checks its interface with one small inference; the
     /// descriptor length is read from that output.
-    pub fn load(path: &Path, ort_library: Option<&Path>, threads: usize) -> Result<Self, FeatureError> {
+    pub fn load(
+        path: &Path,
+        ort_library: Option<&Path>,
+        threads: usize,
+    ) -> Result<Self, FeatureError> {
         if !path.is_file() {
-            return Err(FeatureError::ModelNotFound { path: path.to_path_buf() });
+            return Err(FeatureError::ModelNotFound {
+                path: path.to_path_buf(),
+            });
         }
         let environment = super::runtime::environment(ort_library)?;
-        let interface_err =
-            |reason: String| FeatureError::ModelInterface { path: path.to_path_buf(), reason };
-        let runtime_err = |e: ort::Error<ort::session::builder::SessionBuilder>| FeatureError::Runtime(e.to_string());
+        let interface_err = |reason: String| FeatureError::ModelInterface {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let runtime_err = |e: ort::Error<ort::session::builder::SessionBuilder>| {
+            FeatureError::Runtime(e.to_string())
+        };
         let mut builder = Session::builder(&environment)?
             .with_optimization_level(GraphOptimizationLevel::Level3)
             .map_err(runtime_err)?;
         if threads > 0 {
             builder = builder.with_intra_threads(threads).map_err(runtime_err)?;
         }
-        let session = builder.commit_from_file(path).map_err(|e| interface_err(format!("ONNX Runtime cannot load it: {e}")))?;
-        let names = |outlets: &[ort::value::Outlet]| outlets.iter().map(|o| o.name().to_string()).collect::<Vec<_>>();
+        let session = builder
+            .commit_from_file(path)
+            .map_err(|e| interface_err(format!("ONNX Runtime cannot load it: {e}")))?;
+        let names = |outlets: &[ort::value::Outlet]| {
+            outlets
+                .iter()
+                .map(|o| o.name().to_string())
+                .collect::<Vec<_>>()
+        };
         let inputs = names(session.inputs());
         let outputs = names(session.outputs());
         if inputs != [INPUT_NAME] {
-            return Err(interface_err(format!("expected one input named `{INPUT_NAME}`, found {inputs:?}")));
+            return Err(interface_err(format!(
+                "expected one input named `{INPUT_NAME}`, found {inputs:?}"
+            )));
         }
         for wanted in [SCORES_NAME, DESC_NAME] {
             if !outputs.iter().any(|o| o == wanted) {
-                return Err(interface_err(format!("expected an output named `{wanted}`, found {outputs:?}")));
+                return Err(interface_err(format!(
+                    "expected an output named `{wanted}`, found {outputs:?}"
+                )));
             }
         }
-        let mut model = Self { session, path: path.to_path_buf(), descriptor_len: 0 };
+        let mut model = Self {
+            session,
+            path: path.to_path_buf(),
+            descriptor_len: 0,
+        };
         let probe = ndarray::Array4::<f32>::zeros((1, 1, 2 * CELL, 2 * CELL));
         let descriptor_len = model.run(probe.view(), |scores, desc| {
             if scores.dim() != (2 * CELL, 2 * CELL) || desc.dim().1 != 2 || desc.dim().2 != 2 {
@@ -102,7 +127,10 @@ impl SuperPointModel {
         consume: impl FnOnce(ArrayView2<'_, f32>, ArrayView3<'_, f32>) -> R,
     ) -> Result<R, FeatureError> {
         let path = self.path.clone();
-        let interface_err = |reason: String| FeatureError::ModelInterface { path: path.clone(), reason };
+        let interface_err = |reason: String| FeatureError::ModelInterface {
+            path: path.clone(),
+            reason,
+        };
         let input = TensorRef::from_array_view(image)?;
         let outputs = self.session.run(ort::inputs![INPUT_NAME => input])?;
         let scores = outputs
@@ -115,13 +143,21 @@ impl SuperPointModel {
             .try_extract_array::<f32>()?;
         let scores = match scores.ndim() {
             3 if scores.shape()[0] == 1 => scores.index_axis_move(ndarray::Axis(0), 0),
-            4 if scores.shape()[0] == 1 && scores.shape()[1] == 1 => {
-                scores.index_axis_move(ndarray::Axis(0), 0).index_axis_move(ndarray::Axis(0), 0)
+            4 if scores.shape()[0] == 1 && scores.shape()[1] == 1 => scores
+                .index_axis_move(ndarray::Axis(0), 0)
+                .index_axis_move(ndarray::Axis(0), 0),
+            _ => {
+                return Err(interface_err(format!(
+                    "`{SCORES_NAME}` has shape {:?}; expected [1, H, W]",
+                    scores.shape()
+                )))
             }
-            _ => return Err(interface_err(format!("`{SCORES_NAME}` has shape {:?}; expected [1, H, W]", scores.shape()))),
         };
         if desc.ndim() != 4 || desc.shape()[0] != 1 {
-            return Err(interface_err(format!("`{DESC_NAME}` has shape {:?}; expected [1, D, H/8, W/8]", desc.shape())));
+            return Err(interface_err(format!(
+                "`{DESC_NAME}` has shape {:?}; expected [1, D, H/8, W/8]",
+                desc.shape()
+            )));
         }
         let desc = desc.index_axis_move(ndarray::Axis(0), 0);
         let scores = scores

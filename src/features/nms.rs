@@ -71,7 +71,11 @@ pub fn nms_candidates(
                 }
             }
             if is_max {
-                out.push(Candidate { x: x as f32, y: y as f32, score: raw });
+                out.push(Candidate {
+                    x: x as f32,
+                    y: y as f32,
+                    score: raw,
+                });
             }
         }
     }
@@ -83,7 +87,12 @@ mod tests {
     use super::*;
     use ndarray::Array2;
 
-    fn brute_force(scores: &Array2<f32>, thr: f32, r: usize, region: ValidRegion) -> Vec<(usize, usize)> {
+    fn brute_force(
+        scores: &Array2<f32>,
+        thr: f32,
+        r: usize,
+        region: ValidRegion,
+    ) -> Vec<(usize, usize)> {
         let (rows, cols) = scores.dim();
         let mut out = vec![];
         for y in region.border..region.height - region.border {
@@ -116,10 +125,16 @@ mod tests {
         for trial in 0..20 {
             let (rows, cols) = (40 + trial, 56 + 2 * trial);
             let scores = Array2::from_shape_fn((rows, cols), |_| {
-                state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                state = state
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((state >> 33) % 16) as f32 / 16.0 // coarse values: many ties
             });
-            let region = ValidRegion { width: cols, height: rows, border: 3 };
+            let region = ValidRegion {
+                width: cols,
+                height: rows,
+                border: 3,
+            };
             let r = 1 + trial % 4;
             let got: Vec<_> = nms_candidates(scores.view(), |_, _, s| s, 0.2, r, region)
                 .iter()
@@ -135,8 +150,19 @@ mod tests {
         scores[[2, 2]] = 0.9; // inside the border
         scores[[16, 16]] = 0.8;
         scores[[16, 29]] = 0.7; // beyond the real width 28 (padding)
-        let region = ValidRegion { width: 28, height: 32, border: 4 };
+        let region = ValidRegion {
+            width: 28,
+            height: 32,
+            border: 4,
+        };
         let got = nms_candidates(scores.view(), |_, _, s| s, 0.1, 2, region);
-        assert_eq!(got, vec![Candidate { x: 16.0, y: 16.0, score: 0.8 }]);
+        assert_eq!(
+            got,
+            vec![Candidate {
+                x: 16.0,
+                y: 16.0,
+                score: 0.8
+            }]
+        );
     }
 }

@@ -85,16 +85,23 @@ mod tests {
     fn umax_matches_orb_slam3() {
         // Values printed by ORB-SLAM3's constructor for HALF_PATCH_SIZE = 15.
         let p = CircularPatch::new();
-        assert_eq!(&p.umax[..16], &[15, 15, 15, 15, 14, 14, 14, 13, 13, 12, 11, 10, 9, 8, 6, 3]);
+        assert_eq!(
+            &p.umax[..16],
+            &[15, 15, 15, 15, 14, 14, 14, 13, 13, 12, 11, 10, 9, 8, 6, 3]
+        );
     }
 
     #[test]
     fn a_bright_right_half_points_at_zero_degrees_and_bottom_at_ninety() {
-        let right: Vec<u8> = (0..64 * 64).map(|i| if i % 64 >= 32 { 200 } else { 10 }).collect();
+        let right: Vec<u8> = (0..64 * 64)
+            .map(|i| if i % 64 >= 32 { 200 } else { 10 })
+            .collect();
         let img = GrayImageView::new(&right, 64, 64, 64).unwrap();
         let a = CircularPatch::new().angle(img, 32.0, 32.0);
         assert!(a < 5.0 || a > 355.0, "angle {a}");
-        let bottom: Vec<u8> = (0..64 * 64).map(|i| if i / 64 >= 32 { 200 } else { 10 }).collect();
+        let bottom: Vec<u8> = (0..64 * 64)
+            .map(|i| if i / 64 >= 32 { 200 } else { 10 })
+            .collect();
         let img = GrayImageView::new(&bottom, 64, 64, 64).unwrap();
         let a = CircularPatch::new().angle(img, 32.0, 32.0);
         assert!((a - 90.0).abs() < 5.0, "angle {a}");

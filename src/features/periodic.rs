@@ -49,18 +49,25 @@ pub fn local_contrast(image: GrayImageView<'_>, x: usize, y: usize, radius: usiz
 }
 
 /// Drops candidates whose local contrast is below the configured minimum.
-pub fn reject_low_contrast(candidates: &mut Vec<Candidate>, image: GrayImageView<'_>, config: &PeriodicFilterConfig) {
+pub fn reject_low_contrast(
+    candidates: &mut Vec<Candidate>,
+    image: GrayImageView<'_>,
+    config: &PeriodicFilterConfig,
+) {
     if !config.enabled || config.min_contrast <= 0.0 {
         return;
     }
     candidates.retain(|c| {
-        local_contrast(image, c.x as usize, c.y as usize, config.contrast_radius) >= config.min_contrast
+        local_contrast(image, c.x as usize, c.y as usize, config.contrast_radius)
+            >= config.min_contrast
     });
 }
 
 /// The share of keypoints on the most common sub-cell phase, and that phase
 /// (x mod 8, y mod 8). A uniform spread gives 1/64 ≈ 1.6 %.
-pub fn dominant_phase_fraction(points: impl IntoIterator<Item = (f32, f32)>) -> (f64, (usize, usize)) {
+pub fn dominant_phase_fraction(
+    points: impl IntoIterator<Item = (f32, f32)>,
+) -> (f64, (usize, usize)) {
     let mut counts = [0usize; PHASES];
     let mut total = 0usize;
     for (x, y) in points {
@@ -68,8 +75,16 @@ pub fn dominant_phase_fraction(points: impl IntoIterator<Item = (f32, f32)>) -> 
         counts[(yi % CELL) * CELL + xi % CELL] += 1;
         total += 1;
     }
-    let (i, &c) = counts.iter().enumerate().max_by_key(|(i, &c)| (c, std::cmp::Reverse(*i))).unwrap_or((0, &0));
-    let fraction = if total == 0 { 0.0 } else { c as f64 / total as f64 };
+    let (i, &c) = counts
+        .iter()
+        .enumerate()
+        .max_by_key(|(i, &c)| (c, std::cmp::Reverse(*i)))
+        .unwrap_or((0, &0));
+    let fraction = if total == 0 {
+        0.0
+    } else {
+        c as f64 / total as f64
+    };
     (fraction, (i % CELL, i / CELL))
 }
 
@@ -115,7 +130,9 @@ mod tests {
 
     #[test]
     fn dominant_phase_of_a_lattice() {
-        let pts = (0..10).map(|i| (8.0 * i as f32 + 2.0, 5.0)).chain([(3.0, 3.0)]);
+        let pts = (0..10)
+            .map(|i| (8.0 * i as f32 + 2.0, 5.0))
+            .chain([(3.0, 3.0)]);
         let (f, phase) = dominant_phase_fraction(pts);
         assert_eq!(phase, (2, 5));
         assert!((f - 10.0 / 11.0).abs() < 1e-9);
@@ -157,7 +174,10 @@ impl LatticeMask {
         for cy in 0..cells_y {
             for py in 0..CELL {
                 let row = scores.row(cy * CELL + py);
-                for (cx, slot) in cell_max[cy * cells_x..(cy + 1) * cells_x].iter_mut().enumerate() {
+                for (cx, slot) in cell_max[cy * cells_x..(cy + 1) * cells_x]
+                    .iter_mut()
+                    .enumerate()
+                {
                     for px in 0..CELL {
                         let s = row[cx * CELL + px];
                         if s > slot.1 {
@@ -189,14 +209,23 @@ impl LatticeMask {
                 }
             }
         }
-        Self { cells_x, suppressed, suppressed_cells }
+        Self {
+            cells_x,
+            suppressed,
+            suppressed_cells,
+        }
     }
 
     /// True when the cell holding pixel (x, y) is part of a lattice.
     #[inline]
     pub fn is_suppressed(&self, x: usize, y: usize) -> bool {
         let (cx, cy) = (x / CELL, y / CELL);
-        cx < self.cells_x && self.suppressed.get(cy * self.cells_x + cx).copied().unwrap_or(false)
+        cx < self.cells_x
+            && self
+                .suppressed
+                .get(cy * self.cells_x + cx)
+                .copied()
+                .unwrap_or(false)
     }
 
     /// Number of suppressed cells.

@@ -69,7 +69,10 @@ fn features_per_level(n_features: usize, scale_factor: f32, n_levels: usize) -> 
 
 /// The level images: level 0 is the input, level i is level i-1 resized by
 /// 1/scale_factor with bilinear interpolation (as ORB-SLAM3's `ComputePyramid`).
-pub fn build_pyramid(image: GrayImageView<'_>, tables: &ScaleTables) -> Result<Vec<GrayImage>, FeatureError> {
+pub fn build_pyramid(
+    image: GrayImageView<'_>,
+    tables: &ScaleTables,
+) -> Result<Vec<GrayImage>, FeatureError> {
     let mut levels = Vec::with_capacity(tables.n_levels());
     levels.push(image.to_owned_image());
     for level in 1..tables.n_levels() {
@@ -111,7 +114,10 @@ mod tests {
             s *= 1.2;
         }
         // ORB-SLAM3 with nfeatures = 1000, 1.2, 8 levels.
-        assert_eq!(t.features_per_level, vec![217, 181, 151, 126, 105, 87, 73, 60]);
+        assert_eq!(
+            t.features_per_level,
+            vec![217, 181, 151, 126, 105, 87, 73, 60]
+        );
         assert_eq!(t.features_per_level.iter().sum::<usize>(), 1000);
     }
 

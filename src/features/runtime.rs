@@ -31,13 +31,17 @@ pub fn resolve_library_path(explicit: Option<&Path>) -> (PathBuf, &'static str) 
     if let Some(path) = std::env::var_os("ORT_DYLIB_PATH").filter(|p| !p.is_empty()) {
         return (PathBuf::from(path), "ORT_DYLIB_PATH");
     }
-    let default = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".deps/onnxruntime").join(ORT_LIBRARY_FILE);
+    let default = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join(".deps/onnxruntime")
+        .join(ORT_LIBRARY_FILE);
     (default, "the set-up folder")
 }
 
 /// Loads the library (first call only) and returns the process-wide environment.
 pub fn environment(explicit: Option<&Path>) -> Result<Environment, FeatureError> {
-    let mut loaded = LOADED.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let mut loaded = LOADED
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     let (path, source) = resolve_library_path(explicit);
     if let Some(existing) = loaded.as_ref() {
         if existing.path != path {
@@ -57,10 +61,16 @@ pub fn environment(explicit: Option<&Path>) -> Result<Environment, FeatureError>
     let builder = ort::init_from(&path).map_err(|e| FeatureError::RuntimeLibrary {
         reason: format!("{} (from {source}): {e}", path.display()),
     })?;
-    let environment = builder
-        .with_name("spslam")
-        .build()
-        .map_err(|e| FeatureError::RuntimeLibrary { reason: format!("creating the environment failed: {e}") })?;
-    *loaded = Some(Loaded { path, environment: environment.clone() });
+    let environment =
+        builder
+            .with_name("spslam")
+            .build()
+            .map_err(|e| FeatureError::RuntimeLibrary {
+                reason: format!("creating the environment failed: {e}"),
+            })?;
+    *loaded = Some(Loaded {
+        path,
+        environment: environment.clone(),
+    });
     Ok(environment)
 }

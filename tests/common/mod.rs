@@ -7,7 +7,9 @@ use spslam::features::{default_model_path, ExtractorConfig, GrayImage, SuperPoin
 
 /// True when running under CI, where missing data is a failure, not a skip.
 pub fn under_ci() -> bool {
-    std::env::var("CI").map(|v| v == "true" || v == "1").unwrap_or(false)
+    std::env::var("CI")
+        .map(|v| v == "true" || v == "1")
+        .unwrap_or(false)
 }
 
 /// Fails under CI; elsewhere prints that the test is skipped.
@@ -79,14 +81,26 @@ pub fn euroc_cam0_paths(data: &std::path::Path) -> Vec<PathBuf> {
 pub fn mutual_nearest_neighbours(a: &[f32], b: &[f32], dim: usize) -> Vec<(usize, usize)> {
     let (na, nb) = (a.len() / dim, b.len() / dim);
     let dist = |i: usize, j: usize| -> f32 {
-        a[i * dim..(i + 1) * dim].iter().zip(&b[j * dim..(j + 1) * dim]).map(|(x, y)| (x - y) * (x - y)).sum()
+        a[i * dim..(i + 1) * dim]
+            .iter()
+            .zip(&b[j * dim..(j + 1) * dim])
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum()
     };
     let best = |n_from: usize, n_to: usize, d: &dyn Fn(usize, usize) -> f32| -> Vec<usize> {
         (0..n_from)
-            .map(|i| (0..n_to).min_by(|&p, &q| d(i, p).total_cmp(&d(i, q))).unwrap_or(usize::MAX))
+            .map(|i| {
+                (0..n_to)
+                    .min_by(|&p, &q| d(i, p).total_cmp(&d(i, q)))
+                    .unwrap_or(usize::MAX)
+            })
             .collect()
     };
     let ab = best(na, nb, &dist);
     let ba = best(nb, na, &|j, i| dist(i, j));
-    ab.iter().enumerate().filter(|&(i, &j)| j != usize::MAX && ba[j] == i).map(|(i, &j)| (i, j)).collect()
+    ab.iter()
+        .enumerate()
+        .filter(|&(i, &j)| j != usize::MAX && ba[j] == i)
+        .map(|(i, &j)| (i, j))
+        .collect()
 }

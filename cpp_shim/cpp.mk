@@ -1,0 +1,62 @@
+# cpp_shim/cpp.mk: the ORB-SLAM3 ORBextractor shim, its test and its example,
+# built with plain g++ against target/release/libspslam.a.
+#
+# Included from the top Makefile, which defines `rust-release` (cargo build
+# --release) and the set-up (model + ONNX Runtime) that `cpp-test` needs.
+#
+#   make cpp-build     compile the shim, tests/test_orbextractor and examples/stereo_kitti
+#   make cpp-test      run the test on KITTI frames, then again on a 160x120 crop
+#                      under valgrind (errors and definite leaks fail the target)
+#   make cpp-example   run the stereo KITTI example
+#
+# Variables: CARGO, SPSLAM_DATA (KITTI data root), CXX, CPP_BUILD_DIR, VALGRIND.
+
+CARGO ?= cargo
+SPSLAM_DATA ?= ../shared/data
+
+CPP_SHIM_DIR := cpp_shim
+CPP_BUILD_DIR ?= target/cpp-shim
+CPP_CXXFLAGS ?= -std=c++17 -O2 -g -Wall -Wextra
+CPP_OPENCV_CFLAGS ?= $(shell pkg-config --cflags opencv4 2>/dev/null || echo -I/usr/include/opencv4)
+CPP_INCLUDES := -Iinclude -I$(CPP_SHIM_DIR) $(CPP_OPENCV_CFLAGS)
+CPP_SPSLAM_LIB := target/release/libspslam.a
+CPP_LDLIBS := $(CPP_SPSLAM_LIB) -lopencv_imgcodecs -lopencv_imgproc -lopencv_core -lpthread -ldl -lm
+
+VALGRIND ?= valgrind
+CPP_VALGRIND_FLAGS ?= --error-exitcode=1 --leak-check=full --errors-for-leak-kinds=definite \
+	--suppressions=$(CPP_SHIM_DIR)/valgrind.supp --num-callers=40
+
+CPP_TEST_BIN := $(CPP_BUILD_DIR)/test_orbextractor
+CPP_EXAMPLE_BIN := $(CPP_BUILD_DIR)/stereo_kitti
+CPP_HEADERS := include/spslam.h $(CPP_SHIM_DIR)/ORBextractor.h
+
+.PHONY: cpp-build cpp-test cpp-example
+
+cpp-build: rust-release
+	@mkdir -p $(CPP_BUILD_DIR)
+	$(MAKE) --no-print-directory $(CPP_TEST_BIN) $(CPP_EXAMPLE_BIN)
+
+$(CPP_BUILD_DIR)/ORBextractor.o: $(CPP_SHIM_DIR)/ORBextractor.cc $(CPP_HEADERS)
+	@mkdir -p $(CPP_BUILD_DIR)
+	$(CXX) $(CPP_CXXFLAGS) $(CPP_INCLUDES) -c $< -o $@
+
+$(CPP_BUILD_DIR)/test_orbextractor.o: $(CPP_SHIM_DIR)/tests/test_orbextractor.cc $(CPP_HEADERS)
+	@mkdir -p $(CPP_BUILD_DIR)
+	$(CXX) $(CPP_CXXFLAGS) $(CPP_INCLUDES) -c $< -o $@
+
+$(CPP_BUILD_DIR)/stereo_kitti.o: $(CPP_SHIM_DIR)/examples/stereo_kitti.cc $(CPP_HEADERS)
+	@mkdir -p $(CPP_BUILD_DIR)
+	$(CXX) $(CPP_CXXFLAGS) $(CPP_INCLUDES) -c $< -o $@
+
+$(CPP_TEST_BIN): $(CPP_BUILD_DIR)/test_orbextractor.o $(CPP_BUILD_DIR)/ORBextractor.o $(CPP_SPSLAM_LIB)
+	$(CXX) -o $@ $(filter %.o,$^) $(CPP_LDLIBS)
+
+$(CPP_EXAMPLE_BIN): $(CPP_BUILD_DIR)/stereo_kitti.o $(CPP_BUILD_DIR)/ORBextractor.o $(CPP_SPSLAM_LIB)
+	$(CXX) -o $@ $(filter %.o,$^) $(CPP_LDLIBS)
+
+cpp-test: cpp-build
+	$(CPP_TEST_BIN) $(SPSLAM_DATA)
+	SPSLAM_THREADS=1 $(VALGRIND) $(CPP_VALGRIND_FLAGS) $(CPP_TEST_BIN) --small $(SPSLAM_DATA)
+
+cpp-example: cpp-build
+	$(CPP_EXAMPLE_BIN) $(SPSLAM_DATA)
