@@ -5,7 +5,10 @@
 //!   closure that does nothing) on the padded [1, 1, H, W] input;
 //! - `end_to_end_{kdtree,ssc,none}`: `SuperPointExtractor::extract`, single level;
 //! - the stages on inputs prepared once (dense outputs cached from one run):
-//!   `preprocess`, `decode_nms`, `anms_kdtree`, `anms_ssc`, `top_n`,
+//!   `preprocess`, `decode_nms` (threshold 0.005), `decode_nms_with_fallback`
+//!   (plus the extractor's lower thresholds while < N candidates; the same
+//!   as `decode_nms` when the first threshold yields N), `anms_kdtree`,
+//!   `anms_ssc`, `top_n` (on the candidates the extractor hands to ANMS),
 //!   `descriptors_and_angle`;
 //! - `orb_opencv_1000`: OpenCV ORB with ORB-SLAM3's settings, for reference;
 //! - KITTI only: `end_to_end_pyramid8_kdtree` (8 levels, scale 1.2),
@@ -37,6 +40,8 @@ use spslam::features::{
 
 const N_FEATURES: usize = 1000;
 const THRESHOLD: f32 = 0.005;
+/// The extractor's default fallback threshold (ORB-SLAM3's minThFAST 7 / 4000).
+const MIN_THRESHOLD: f32 = 0.00175;
 const NMS_RADIUS: usize = 4;
 const BORDER: usize = 8;
 
@@ -88,12 +93,13 @@ fn padded_input(image: GrayImageView<'_>) -> Array4<f32> {
     Array4::from_shape_vec((1, 1, ph, pw), buffer).expect("padded buffer has the padded shape")
 }
 
-/// Periodic filter + NMS + low-contrast rejection, as the extractor does at
-/// its first threshold.
+/// Periodic filter + NMS + low-contrast rejection at one threshold, as the
+/// extractor does.
 fn decode_nms(
     scores: &Array2<f32>,
     image: GrayImageView<'_>,
     filter: &PeriodicFilterConfig,
+    threshold: f32,
     cell_max: &mut Vec<(u8, f32)>,
 ) -> Vec<Candidate> {
     let (w, h) = (image.width(), image.height());
@@ -102,7 +108,7 @@ fn decode_nms(
             scores.view(),
             w,
             h,
-            THRESHOLD,
+            threshold,
             filter.lattice_min_support,
             cell_max,
         )
@@ -115,9 +121,34 @@ fn decode_nms(
         height: h,
         border: BORDER,
     };
-    let mut candidates = nms_candidates(scores.view(), adjust, THRESHOLD, NMS_RADIUS, region);
+    let mut candidates = nms_candidates(scores.view(), adjust, threshold, NMS_RADIUS, region);
     reject_low_contrast(&mut candidates, image, filter);
     candidates
+}
+
+/// What the extractor does on a level: `decode_nms` at `THRESHOLD`, then,
+/// while fewer than `N_FEATURES` candidates, at `MIN_THRESHOLD`, /4 and /16,
+/// keeping the largest set. Returns the candidates and the threshold used.
+fn decode_nms_with_fallback(
+    scores: &Array2<f32>,
+    image: GrayImageView<'_>,
+    filter: &PeriodicFilterConfig,
+    cell_max: &mut Vec<(u8, f32)>,
+) -> (Vec<Candidate>, f32) {
+    let mut best = (
+        decode_nms(scores, image, filter, THRESHOLD, cell_max),
+        THRESHOLD,
+    );
+    for t in [MIN_THRESHOLD, MIN_THRESHOLD / 4.0, MIN_THRESHOLD / 16.0] {
+        if best.0.len() >= N_FEATURES {
+            break;
+        }
+        let retry = decode_nms(scores, image, filter, t, cell_max);
+        if retry.len() > best.0.len() {
+            best = (retry, t);
+        }
+    }
+    best
 }
 
 fn extractor(anms: AnmsMethod, n_levels: usize) -> SuperPointExtractor {
@@ -145,14 +176,17 @@ fn bench_frame(c: &mut Criterion, name: &str, path: &Path, model: &mut SuperPoin
         .expect("SuperPoint inference failed on the benchmark frame");
     let filter = PeriodicFilterConfig::default();
     let mut cell_max = Vec::new();
-    let candidates = decode_nms(&scores, view, &filter, &mut cell_max);
+    let first = decode_nms(&scores, view, &filter, THRESHOLD, &mut cell_max).len();
+    // The candidates the extractor hands to ANMS (after its fallback thresholds).
+    let (candidates, used) = decode_nms_with_fallback(&scores, view, &filter, &mut cell_max);
     let selected = anms_kdtree(&candidates, N_FEATURES);
     let points: Vec<(f32, f32)> = selected
         .iter()
         .map(|&i| (candidates[i].x, candidates[i].y))
         .collect();
     println!(
-        "{name}: {w}x{h}, {} NMS candidates at threshold {THRESHOLD}, {} selected",
+        "{name}: {w}x{h}, {first} NMS candidates at threshold {THRESHOLD}; \
+         {} at threshold {used} (after the extractor's fallback) go to ANMS; {} selected",
         candidates.len(),
         points.len()
     );
@@ -183,7 +217,10 @@ fn bench_frame(c: &mut Criterion, name: &str, path: &Path, model: &mut SuperPoin
         b.iter(|| fill_padded_input(black_box(view), &mut buffer))
     });
     g.bench_function("decode_nms", |b| {
-        b.iter(|| decode_nms(black_box(&scores), view, &filter, &mut cell_max))
+        b.iter(|| decode_nms(black_box(&scores), view, &filter, THRESHOLD, &mut cell_max))
+    });
+    g.bench_function("decode_nms_with_fallback", |b| {
+        b.iter(|| decode_nms_with_fallback(black_box(&scores), view, &filter, &mut cell_max))
     });
     g.bench_function("anms_kdtree", |b| {
         b.iter(|| anms_kdtree(black_box(&candidates), N_FEATURES))

@@ -32,19 +32,23 @@ CPP_HEADERS := include/spslam.h $(CPP_SHIM_DIR)/ORBextractor.h
 
 .PHONY: cpp-build cpp-test cpp-example
 
-cpp-build: rust-release
-	@mkdir -p $(CPP_BUILD_DIR)
-	$(MAKE) --no-print-directory $(CPP_TEST_BIN) $(CPP_EXAMPLE_BIN)
+cpp-build: $(CPP_TEST_BIN) $(CPP_EXAMPLE_BIN)
 
-$(CPP_BUILD_DIR)/ORBextractor.o: $(CPP_SHIM_DIR)/ORBextractor.cc $(CPP_HEADERS)
+# The Rust library comes from `rust-release` (defined by the top Makefile);
+# the empty recipe makes make re-read its time stamp after cargo ran, so the
+# binaries are relinked against a fresh library (and the objects compile
+# only after it exists, also under -j).
+$(CPP_SPSLAM_LIB): rust-release ;
+
+$(CPP_BUILD_DIR)/ORBextractor.o: $(CPP_SHIM_DIR)/ORBextractor.cc $(CPP_HEADERS) | $(CPP_SPSLAM_LIB)
 	@mkdir -p $(CPP_BUILD_DIR)
 	$(CXX) $(CPP_CXXFLAGS) $(CPP_INCLUDES) -c $< -o $@
 
-$(CPP_BUILD_DIR)/test_orbextractor.o: $(CPP_SHIM_DIR)/tests/test_orbextractor.cc $(CPP_HEADERS)
+$(CPP_BUILD_DIR)/test_orbextractor.o: $(CPP_SHIM_DIR)/tests/test_orbextractor.cc $(CPP_HEADERS) | $(CPP_SPSLAM_LIB)
 	@mkdir -p $(CPP_BUILD_DIR)
 	$(CXX) $(CPP_CXXFLAGS) $(CPP_INCLUDES) -c $< -o $@
 
-$(CPP_BUILD_DIR)/stereo_kitti.o: $(CPP_SHIM_DIR)/examples/stereo_kitti.cc $(CPP_HEADERS)
+$(CPP_BUILD_DIR)/stereo_kitti.o: $(CPP_SHIM_DIR)/examples/stereo_kitti.cc $(CPP_HEADERS) | $(CPP_SPSLAM_LIB)
 	@mkdir -p $(CPP_BUILD_DIR)
 	$(CXX) $(CPP_CXXFLAGS) $(CPP_INCLUDES) -c $< -o $@
 

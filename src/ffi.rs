@@ -810,10 +810,8 @@ mod tests {
     fn default_config_round_trips() {
         let mut c = std::mem::MaybeUninit::<SpslamConfig>::uninit();
         // SAFETY: `c` is writable.
-        assert_eq!(
-            unsafe { spslam_config_default(c.as_mut_ptr()) },
-            SpslamStatus::Ok
-        );
+        let status = unsafe { spslam_config_default(c.as_mut_ptr()) };
+        assert_eq!(status, SpslamStatus::Ok);
         // SAFETY: initialised by the successful call.
         let c = unsafe { c.assume_init() };
         // SAFETY: the path fields are NULL.
@@ -825,37 +823,29 @@ mod tests {
     #[test]
     fn null_pointers_and_bad_values_are_errors() {
         // SAFETY: NULL is handled.
-        assert_eq!(
-            unsafe { spslam_config_default(std::ptr::null_mut()) },
-            SpslamStatus::NullPointer
-        );
+        let status = unsafe { spslam_config_default(std::ptr::null_mut()) };
+        assert_eq!(status, SpslamStatus::NullPointer);
         assert!(last_error().contains("out"), "{}", last_error());
         let mut c = std::mem::MaybeUninit::<SpslamConfig>::uninit();
         // SAFETY: `c` is writable.
         let status = unsafe { spslam_config_from_orb_slam3(-5, 1.2, 8, 20, 7, c.as_mut_ptr()) };
         assert_eq!(status, SpslamStatus::InvalidArgument);
         // SAFETY: `c` is writable.
-        assert_eq!(
-            unsafe { spslam_config_default(c.as_mut_ptr()) },
-            SpslamStatus::Ok
-        );
+        let status = unsafe { spslam_config_default(c.as_mut_ptr()) };
+        assert_eq!(status, SpslamStatus::Ok);
         // SAFETY: initialised above.
         let mut c = unsafe { c.assume_init() };
         c.anms = 17;
         let mut handle = std::ptr::null_mut();
         // SAFETY: valid config and out pointer.
-        assert_eq!(
-            unsafe { spslam_extractor_create(&c, &mut handle) },
-            SpslamStatus::InvalidArgument
-        );
+        let status = unsafe { spslam_extractor_create(&c, &mut handle) };
+        assert_eq!(status, SpslamStatus::InvalidArgument);
         assert!(handle.is_null());
         c.anms = SpslamAnms::Ssc as i32;
         c.n_levels = 0;
         // SAFETY: valid config and out pointer.
-        assert_eq!(
-            unsafe { spslam_extractor_create(&c, &mut handle) },
-            SpslamStatus::InvalidArgument
-        );
+        let status = unsafe { spslam_extractor_create(&c, &mut handle) };
+        assert_eq!(status, SpslamStatus::InvalidArgument);
         assert!(last_error().contains("n_levels"), "{}", last_error());
         // SAFETY: NULL handle and NULL outputs are checked.
         unsafe {

@@ -271,17 +271,29 @@ fn bad_images_are_errors_with_messages() {
     let handle = Handle::new(&config);
     let pixels = vec![128u8; 64 * 64];
     let mut out = ptr::null_mut();
-    let cases: [(
-        &str,
-        *const u8,
-        usize,
-        usize,
-        usize,
-        usize,
-        SpslamStatus,
-        &str,
-    ); 6] = [
-        (
+    struct Case {
+        what: &'static str,
+        data: *const u8,
+        len: usize,
+        width: usize,
+        height: usize,
+        stride: usize,
+        expected: SpslamStatus,
+        needle: &'static str,
+    }
+    let case = |what, data, len, width, height, stride, expected, needle| Case {
+        what,
+        data,
+        len,
+        width,
+        height,
+        stride,
+        expected,
+        needle,
+    };
+    let p = pixels.as_ptr();
+    let cases = [
+        case(
             "null data",
             ptr::null(),
             4096,
@@ -291,9 +303,9 @@ fn bad_images_are_errors_with_messages() {
             SpslamStatus::NullPointer,
             "data",
         ),
-        (
+        case(
             "zero width",
-            pixels.as_ptr(),
+            p,
             4096,
             0,
             64,
@@ -301,9 +313,9 @@ fn bad_images_are_errors_with_messages() {
             SpslamStatus::ImageError,
             "empty",
         ),
-        (
+        case(
             "zero height",
-            pixels.as_ptr(),
+            p,
             4096,
             64,
             0,
@@ -311,9 +323,9 @@ fn bad_images_are_errors_with_messages() {
             SpslamStatus::ImageError,
             "empty",
         ),
-        (
+        case(
             "stride < width",
-            pixels.as_ptr(),
+            p,
             4096,
             64,
             64,
@@ -321,9 +333,9 @@ fn bad_images_are_errors_with_messages() {
             SpslamStatus::ImageError,
             "stride",
         ),
-        (
+        case(
             "short buffer",
-            pixels.as_ptr(),
+            p,
             4000,
             64,
             64,
@@ -331,9 +343,9 @@ fn bad_images_are_errors_with_messages() {
             SpslamStatus::ImageError,
             "needs",
         ),
-        (
+        case(
             "too small",
-            pixels.as_ptr(),
+            p,
             4096,
             8,
             8,
@@ -342,13 +354,17 @@ fn bad_images_are_errors_with_messages() {
             "at least",
         ),
     ];
-    for (what, data, len, w, h, stride, expected, needle) in cases {
+    for c in cases {
         // SAFETY: `data` is NULL or readable for `len` bytes (len <= 4096); out is writable.
-        let status = unsafe { spslam_extract(handle.0, data, len, w, h, stride, &mut out) };
-        assert_eq!(status, expected, "{what}");
-        assert!(out.is_null(), "{what}");
+        let status = unsafe {
+            spslam_extract(
+                handle.0, c.data, c.len, c.width, c.height, c.stride, &mut out,
+            )
+        };
+        assert_eq!(status, c.expected, "{}", c.what);
+        assert!(out.is_null(), "{}", c.what);
         let message = last_error();
-        assert!(message.contains(needle), "{what}: {message}");
+        assert!(message.contains(c.needle), "{}: {message}", c.what);
     }
     // SAFETY: live handle; NULL out pointer is checked.
     let status =

@@ -343,7 +343,7 @@ fn radii_brute_force(candidates: &[Candidate], order: &[usize]) -> Vec<f32> {
 /// the grid removed at least one candidate. With a candidate pool close to
 /// `n` (usual after NMS), the reference would stop at a grid that removes
 /// nothing and so return the top-N; this version spreads the points instead.
-
+///
 /// Differences from the reference, so that exactly `min(n, len)` indices come
 /// back:
 /// - more than `n` kept: truncated to the first `n` (selection order is

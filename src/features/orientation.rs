@@ -98,7 +98,7 @@ mod tests {
             .collect();
         let img = GrayImageView::new(&right, 64, 64, 64).unwrap();
         let a = CircularPatch::new().angle(img, 32.0, 32.0);
-        assert!(a < 5.0 || a > 355.0, "angle {a}");
+        assert!(!(5.0..=355.0).contains(&a), "angle {a}");
         let bottom: Vec<u8> = (0..64 * 64)
             .map(|i| if i / 64 >= 32 { 200 } else { 10 })
             .collect();
