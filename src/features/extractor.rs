@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use ndarray::ArrayView4;
+use ndarray::{ArrayView2, ArrayView4};
 
 use super::anms::{self, Candidate};
 use super::image::MIN_IMAGE_SIDE;
@@ -13,7 +13,8 @@ use super::orientation::{CircularPatch, PATCH_SIZE};
 use super::periodic::{reject_low_contrast, LatticeMask};
 use super::pyramid::{build_pyramid, ScaleTables};
 use super::{
-    ExtractorConfig, FeatureError, Features, GrayImage, GrayImageView, Keypoint, StageTimings,
+    ExtractorConfig, FeatureError, Features, GrayImage, GrayImageView, Keypoint,
+    PeriodicFilterConfig, StageTimings,
 };
 
 /// What the periodic-artefact filter did on one extraction (for diagnostics).
@@ -184,48 +185,30 @@ impl SuperPointExtractor {
             timings.inference_ms += ms(t_inference);
 
             let t = Instant::now();
-            let filter = &config.periodic_filter;
-            let detect = |threshold: f32,
-                          radius: usize,
-                          cell_max: &mut Vec<(u8, f32)>|
-             -> (Vec<Candidate>, usize, usize) {
-                let mask = if filter.enabled && filter.lattice_min_support > 0 {
-                    let (w, h) = (image.width(), image.height());
-                    LatticeMask::estimate(
-                        scores,
-                        w,
-                        h,
-                        threshold,
-                        filter.lattice_min_support,
-                        cell_max,
-                    )
-                } else {
-                    LatticeMask::empty()
-                };
-                let adjust =
-                    |x: usize, y: usize, s: f32| if mask.is_suppressed(x, y) { 0.0 } else { s };
-                let mut c = nms_candidates(scores, adjust, threshold, radius, region);
-                let before = c.len();
-                reject_low_contrast(&mut c, image, filter);
-                let rejected = before - c.len();
-                (c, rejected, mask.suppressed_cells())
-            };
             // As ORB-SLAM3 retries FAST with minThFAST: the fallbacks are tried
             // only while the level has fewer candidates than its quota.
-            let first = (config.threshold, config.nms_radius);
-            let (mut candidates, mut rejected, mut lattice) =
-                detect(first.0, first.1, &mut scratch.cell_max);
+            let detect = |threshold, radius, cell_max: &mut Vec<(u8, f32)>| {
+                let pass = DetectionPass {
+                    threshold,
+                    radius,
+                    region,
+                    filter: &config.periodic_filter,
+                };
+                pass.run(scores, image, cell_max)
+            };
+            let mut detection = detect(config.threshold, config.nms_radius, &mut scratch.cell_max);
             for (threshold, radius) in fallback_detections(config) {
-                if candidates.len() >= quota {
+                if detection.candidates.len() >= quota {
                     break;
                 }
                 let retry = detect(threshold, radius, &mut scratch.cell_max);
-                if retry.0.len() > candidates.len() {
-                    (candidates, rejected, lattice) = retry;
+                if retry.candidates.len() > detection.candidates.len() {
+                    detection = retry;
                 }
             }
-            report.low_contrast_rejected += rejected;
-            report.lattice_cells += lattice;
+            report.low_contrast_rejected += detection.low_contrast_rejected;
+            report.lattice_cells += detection.lattice_cells;
+            let candidates = detection.candidates;
             timings.decode_nms_ms += ms(t);
 
             let t = Instant::now();
@@ -282,6 +265,56 @@ fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize,
         buffer.extend(std::iter::repeat_n(last, pw - w));
     }
     (pw, ph)
+}
+
+/// One detection on a level's score map: lattice suppression, NMS, border
+/// removal and low-contrast rejection.
+struct DetectionPass<'a> {
+    threshold: f32,
+    radius: usize,
+    region: ValidRegion,
+    filter: &'a PeriodicFilterConfig,
+}
+
+/// The candidates of one [`DetectionPass`] and what the filter removed.
+struct Detection {
+    candidates: Vec<Candidate>,
+    low_contrast_rejected: usize,
+    lattice_cells: usize,
+}
+
+impl DetectionPass<'_> {
+    fn run(
+        &self,
+        scores: ArrayView2<'_, f32>,
+        image: GrayImageView<'_>,
+        cell_max: &mut Vec<(u8, f32)>,
+    ) -> Detection {
+        let filter = self.filter;
+        let mask = if filter.enabled && filter.lattice_min_support > 0 {
+            let (w, h) = (image.width(), image.height());
+            LatticeMask::estimate(
+                scores,
+                w,
+                h,
+                self.threshold,
+                filter.lattice_min_support,
+                cell_max,
+            )
+        } else {
+            LatticeMask::empty()
+        };
+        let adjust = |x: usize, y: usize, s: f32| if mask.is_suppressed(x, y) { 0.0 } else { s };
+        let mut candidates =
+            nms_candidates(scores, adjust, self.threshold, self.radius, self.region);
+        let before = candidates.len();
+        reject_low_contrast(&mut candidates, image, filter);
+        Detection {
+            low_contrast_rejected: before - candidates.len(),
+            lattice_cells: mask.suppressed_cells(),
+            candidates,
+        }
+    }
 }
 
 /// The (threshold, NMS radius) pairs tried after the first detection on a
