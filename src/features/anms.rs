@@ -111,8 +111,7 @@ fn valid_position(c: &Candidate) -> bool {
     c.x.abs() <= MAX_COORDINATE && c.y.abs() <= MAX_COORDINATE
 }
 
-/// The squared distance used by both ANMS implementations, computed in `f32`
-/// exactly as kiddo's `SquaredEuclidean<f32>` does.
+/// The squared distance used by both ANMS implementations, in `f32`.
 #[inline]
 fn sq_dist(a: [f32; 2], b: [f32; 2]) -> f32 {
     let dx = a[0] - b[0];
@@ -147,7 +146,8 @@ fn keep_largest_radii(order: &[usize], radii: &[f32], n: usize) -> Vec<usize> {
         .collect()
 }
 
-/// The paper's adaptive non-maximal suppression, with a kd-tree.
+/// The paper's adaptive non-maximal suppression (the `kdtree` method), with a
+/// spatial index for the nearest-stronger search.
 ///
 /// Candidates are ranked in strength order (module docs). Each candidate's
 /// suppression radius `r` is the Euclidean distance to the nearest stronger
@@ -162,11 +162,12 @@ fn keep_largest_radii(order: &[usize], radii: &[f32], n: usize) -> Vec<usize> {
 /// they rank after every candidate with a valid position (among themselves in
 /// strength order). The strongest valid candidate has `r = +inf`.
 ///
-/// Points are added to a kiddo kd-tree in strength order, each one queried
-/// for its nearest (stronger) neighbour before insertion: `O(len log len)` for
-/// ordinary inputs. Exact duplicates of a stronger point get `r = 0` without
-/// being inserted; a point the tree cannot take (a full bucket of equal
-/// coordinates on the split axis) goes to a small side list scanned linearly.
+/// Points are added to the index in strength order, each one queried for its
+/// nearest (stronger) neighbour before insertion; exact duplicates of a
+/// stronger point get `r = 0` without being inserted. The index is a uniform
+/// bucket grid rather than a kd-tree, because kiddo 6.3.0's kd-tree returned
+/// wrong nearest neighbours (see `radii_indexed`); the name of the method is
+/// kept because it is the paper's algorithm.
 pub fn anms_kdtree(candidates: &[Candidate], n: usize) -> Vec<usize> {
     let len = candidates.len();
     if n == 0 || len == 0 {
@@ -176,7 +177,7 @@ pub fn anms_kdtree(candidates: &[Candidate], n: usize) -> Vec<usize> {
         return anms_brute_force(candidates, n);
     }
     let order = strength_order(candidates);
-    let radii = radii_kdtree(candidates, &order);
+    let radii = radii_indexed(candidates, &order);
     keep_largest_radii(&order, &radii, n)
 }
 
@@ -190,7 +191,7 @@ pub fn anms_kdtree(candidates: &[Candidate], n: usize) -> Vec<usize> {
 /// inserted in strength order, and each query scans rings of cells around the
 /// point until no unscanned cell can hold a closer point. About one point per
 /// cell: `O(len)` expected work for spread-out inputs.
-fn radii_kdtree(candidates: &[Candidate], order: &[usize]) -> Vec<f32> {
+fn radii_indexed(candidates: &[Candidate], order: &[usize]) -> Vec<f32> {
     let len = order.len();
     let mut radii = vec![INVALID_RADIUS; len];
     // Valid positions in strength order, with their ranks.
@@ -778,7 +779,7 @@ mod tests {
         }
         let order = strength_order(&cands);
         assert_eq!(
-            radii_kdtree(&cands, &order),
+            radii_indexed(&cands, &order),
             radii_brute_force(&cands, &order)
         );
     }
