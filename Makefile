@@ -37,7 +37,7 @@ demo: build
 	./target/release/spslam extract "$$img" --features 1000 --anms kdtree --json $(OUT)/demo_features.json --draw $(OUT)/demo_keypoints.png
 	@echo "[demo] keypoint picture: $(OUT)/demo_keypoints.png"
 
-lint:
+lint: setup
 	$(CARGO) fmt --check
 	$(CARGO) clippy --release --all-targets -- -D warnings
 
