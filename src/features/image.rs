@@ -204,3 +204,39 @@ impl GrayImage {
         &self.data
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use opencv::core::{Scalar, CV_16UC1, CV_32FC1, CV_8UC3};
+
+    #[test]
+    fn colour_is_converted_and_other_types_are_refused() {
+        let colour =
+            Mat::new_rows_cols_with_default(20, 30, CV_8UC3, Scalar::new(10.0, 20.0, 30.0, 0.0))
+                .unwrap();
+        let gray = GrayImage::from_mat(&colour).unwrap();
+        assert_eq!((gray.width(), gray.height()), (30, 20));
+        // OpenCV's BGR→gray weights: 0.114 B + 0.587 G + 0.299 R.
+        assert_eq!(gray.as_slice()[0], 22);
+        for typ in [CV_32FC1, CV_16UC1] {
+            let m = Mat::new_rows_cols_with_default(20, 30, typ, Scalar::all(0.0)).unwrap();
+            assert!(matches!(
+                GrayImage::from_mat(&m),
+                Err(FeatureError::UnsupportedImageType(_))
+            ));
+        }
+        assert!(matches!(
+            GrayImage::from_mat(&Mat::default()),
+            Err(FeatureError::UnsupportedImageType(_) | FeatureError::EmptyImage { .. })
+        ));
+    }
+
+    #[test]
+    fn mat_round_trip_keeps_the_pixels() {
+        let pixels: Vec<u8> = (0..12 * 7).map(|i| (i * 3 % 256) as u8).collect();
+        let image = GrayImage::from_vec(pixels.clone(), 12, 7).unwrap();
+        let back = GrayImage::from_mat(&image.to_mat().unwrap()).unwrap();
+        assert_eq!(back.as_slice(), &pixels[..]);
+    }
+}
