@@ -5,9 +5,9 @@
 # --release) and the set-up (model + ONNX Runtime) that `cpp-test` needs.
 #
 #   make cpp-build     compile the shim, tests/test_orbextractor and examples/stereo_kitti
-#   make cpp-test      run the test on KITTI frames, then again on a 160x120 crop
+#   make cpp-test      run the test on KITTI frames, then again on a 64x48 crop
 #                      under valgrind (errors and definite leaks fail the target;
-#                      about 10 CPU-minutes, ONNX Runtime is slow under valgrind;
+#                      a few minutes: ONNX Runtime is very slow under valgrind;
 #                      CPP_VALGRIND=0 skips that run)
 #   make cpp-example   run the stereo KITTI example
 #

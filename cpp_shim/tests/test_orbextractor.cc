@@ -5,7 +5,7 @@
 // DATA_DIR defaults to $SPSLAM_DATA, else ../shared/data; it must hold
 // kitti/sequences/06/image_{0,1}/000000.png. When the frames are missing the
 // test prints "SKIPPED: ..." and exits 0, unless CI=true (then it fails).
-// --small runs everything on a 160x120 crop with 2 levels (for valgrind).
+// --small runs everything on a 64x48 crop with 2 levels (for valgrind).
 // Exit status: 0 when every check passed, 1 otherwise.
 
 #include "ORBextractor.h"
@@ -471,12 +471,14 @@ int main(int argc, char** argv)
     }
     if (p.small)
     {
-        const cv::Rect crop(500, 150, 160, 120);
+        // ONNX Runtime's kernels run ~1000x slower under valgrind (15 s for
+        // one 64x48 inference), so the memory check uses a small textured crop.
+        const cv::Rect crop(720, 170, 64, 48);
         left = left(crop).clone();
         right = right(crop).clone();
-        p.nfeatures = 200;
+        p.nfeatures = 60;
         p.nlevels = 2;
-        p.lapping = {40, 100};
+        p.lapping = {20, 40};
     }
     std::printf("spslam %s, %s mode, %dx%d images, nfeatures=%d nlevels=%d\n", spslam_version(),
                 p.small ? "small" : "full", left.cols, left.rows, p.nfeatures, p.nlevels);
@@ -493,7 +495,7 @@ int main(int argc, char** argv)
 
     // The reference: a direct C ABI extraction on the same buffer (keypoints in the library's order).
     const Result capi = RunCApi(p, left);
-    CHECK(capi.keypoints.size() > (p.small ? 20u : 500u), "too few keypoints: %zu", capi.keypoints.size());
+    CHECK(capi.keypoints.size() > (p.small ? 5u : 500u), "too few keypoints: %zu", capi.keypoints.size());
     Result plain = capi;
     if (!p.small)
     {
