@@ -28,7 +28,7 @@ use opencv::core::{Mat, Vector};
 use opencv::features2d::{Feature2DTrait, ORB_ScoreType, ORB};
 use spslam::features::anms::{anms_kdtree, anms_ssc, select_top_n, Candidate, SSC_TOLERANCE};
 use spslam::features::descriptors::sample_descriptors;
-use spslam::features::model::{SuperPointModel, CELL};
+use spslam::features::model::{fill_padded_input, SuperPointModel};
 use spslam::features::nms::{nms_candidates, ValidRegion};
 use spslam::features::orientation::CircularPatch;
 use spslam::features::periodic::{reject_low_contrast, LatticeMask};
@@ -67,24 +67,6 @@ fn frames(data: &Path) -> Vec<(&'static str, Option<PathBuf>)> {
         ("kitti_1226x370", kitti.is_file().then_some(kitti)),
         ("euroc_752x480", euroc),
     ]
-}
-
-/// The same conversion as the extractor's private `fill_padded_input`: floats
-/// in [0, 1], padded by edge replication up to a multiple of the cell size.
-fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize, usize) {
-    let (w, h) = (image.width(), image.height());
-    let pw = w.div_ceil(CELL) * CELL;
-    let ph = h.div_ceil(CELL) * CELL;
-    buffer.clear();
-    buffer.reserve(pw * ph);
-    const INV: f32 = 1.0 / 255.0;
-    for y in 0..ph {
-        let row = image.row(y.min(h - 1));
-        buffer.extend(row.iter().map(|&p| p as f32 * INV));
-        let last = row[w - 1] as f32 * INV;
-        buffer.extend(std::iter::repeat_n(last, pw - w));
-    }
-    (pw, ph)
 }
 
 fn padded_input(image: GrayImageView<'_>) -> Array4<f32> {

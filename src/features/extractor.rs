@@ -7,7 +7,7 @@ use ndarray::{ArrayView2, ArrayView4};
 
 use super::anms::{self, Candidate};
 use super::image::MIN_IMAGE_SIDE;
-use super::model::{SuperPointModel, CELL};
+use super::model::{fill_padded_input, SuperPointModel};
 use super::nms::{nms_candidates, ValidRegion};
 use super::orientation::{CircularPatch, PATCH_SIZE};
 use super::periodic::{reject_low_contrast, LatticeMask};
@@ -247,24 +247,6 @@ impl SuperPointExtractor {
             timings.descriptors_ms += ms(t);
         })
     }
-}
-
-/// Copies the image into `buffer` as floats in [0, 1], padded by edge
-/// replication up to a multiple of the cell size; returns the padded size.
-fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize, usize) {
-    let (w, h) = (image.width(), image.height());
-    let pw = w.div_ceil(CELL) * CELL;
-    let ph = h.div_ceil(CELL) * CELL;
-    buffer.clear();
-    buffer.reserve(pw * ph);
-    const INV: f32 = 1.0 / 255.0;
-    for y in 0..ph {
-        let row = image.row(y.min(h - 1));
-        buffer.extend(row.iter().map(|&p| p as f32 * INV));
-        let last = row[w - 1] as f32 * INV;
-        buffer.extend(std::iter::repeat_n(last, pw - w));
-    }
-    (pw, ph)
 }
 
 /// One detection on a level's score map: lattice suppression, NMS, border

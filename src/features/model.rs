@@ -7,7 +7,7 @@ use ort::session::builder::GraphOptimizationLevel;
 use ort::session::Session;
 use ort::value::TensorRef;
 
-use super::FeatureError;
+use super::{FeatureError, GrayImageView};
 
 /// The name of the model's input.
 pub const INPUT_NAME: &str = "image";
@@ -168,4 +168,22 @@ impl SuperPointModel {
             .map_err(|e| interface_err(e.to_string()))?;
         Ok(consume(scores, desc))
     }
+}
+
+/// Copies the image into `buffer` as floats in [0, 1], padded by edge
+/// replication up to a multiple of the cell size; returns the padded size.
+pub fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize, usize) {
+    let (w, h) = (image.width(), image.height());
+    let pw = w.div_ceil(CELL) * CELL;
+    let ph = h.div_ceil(CELL) * CELL;
+    buffer.clear();
+    buffer.reserve(pw * ph);
+    const INV: f32 = 1.0 / 255.0;
+    for y in 0..ph {
+        let row = image.row(y.min(h - 1));
+        buffer.extend(row.iter().map(|&p| p as f32 * INV));
+        let last = row[w - 1] as f32 * INV;
+        buffer.extend(std::iter::repeat_n(last, pw - w));
+    }
+    (pw, ph)
 }
