@@ -6,5 +6,7 @@
 //! - `ffi`: a C ABI over the extractor (see `include/spslam.h`).
 #![warn(missing_docs)]
 
+pub mod dataset;
+pub mod eval;
 pub mod features;
 pub mod ffi;

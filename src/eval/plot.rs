@@ -1,0 +1,173 @@
+//! PNG plots of trajectories and errors (plotters).
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::ate::position_errors;
+use super::error::{EvalError, Result};
+use super::trajectory::Trajectory;
+
+/// Image size of the plots.
+pub const PLOT_SIZE: (u32, u32) = (1000, 800);
+
+/// The plane of a top view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlotPlane {
+    /// x–z: KITTI's camera frame (x right, z forward).
+    Xz,
+    /// x–y: TUM, EuRoC and other world frames with z up.
+    Xy,
+}
+
+impl PlotPlane {
+    fn project(self, v: &nalgebra::Vector3<f64>) -> (f64, f64) {
+        match self {
+            Self::Xz => (v.x, v.z),
+            Self::Xy => (v.x, v.y),
+        }
+    }
+
+    fn labels(self) -> (&'static str, &'static str) {
+        match self {
+            Self::Xz => ("x [m]", "z [m]"),
+            Self::Xy => ("x [m]", "y [m]"),
+        }
+    }
+}
+
+fn plot_error(path: &Path, e: impl std::fmt::Display) -> EvalError {
+    EvalError::Plot {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// A range covering `values` with a margin, never empty (degenerate ranges widened by 1).
+fn padded_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+    if !lo.is_finite() || !hi.is_finite() {
+        return (-1.0, 1.0);
+    }
+    if hi - lo < 1e-9 {
+        lo -= 1.0;
+        hi += 1.0;
+    }
+    let margin = 0.05 * (hi - lo);
+    (lo - margin, hi + margin)
+}
+
+/// Widens the smaller of two ranges so that both axes have the same metres per pixel.
+fn equal_aspect(x: (f64, f64), y: (f64, f64)) -> ((f64, f64), (f64, f64)) {
+    let (w, h) = (PLOT_SIZE.0 as f64, PLOT_SIZE.1 as f64);
+    let per_px = ((x.1 - x.0) / w).max((y.1 - y.0) / h);
+    let grow = |r: (f64, f64), px: f64| {
+        let c = 0.5 * (r.0 + r.1);
+        (c - 0.5 * per_px * px, c + 0.5 * per_px * px)
+    };
+    (grow(x, w), grow(y, h))
+}
+
+/// Draws the estimate over the ground truth, seen from above in `plane`.
+pub fn write_trajectory_plot(
+    gt: &Trajectory,
+    est: &Trajectory,
+    path: &Path,
+    plane: PlotPlane,
+) -> Result<()> {
+    let project = |t: &Trajectory| -> Vec<(f64, f64)> {
+        t.poses
+            .iter()
+            .map(|p| plane.project(&p.translation.vector))
+            .collect()
+    };
+    let (g, e) = (project(gt), project(est));
+    let x = padded_range(g.iter().chain(&e).map(|p| p.0));
+    let y = padded_range(g.iter().chain(&e).map(|p| p.1));
+    let (x, y) = equal_aspect(x, y);
+    let root = BitMapBackend::new(path, PLOT_SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_error(path, e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Trajectory (top view)", ("sans-serif", 28))
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x.0..x.1, y.0..y.1)
+        .map_err(|e| plot_error(path, e))?;
+    let (xl, yl) = plane.labels();
+    chart
+        .configure_mesh()
+        .x_desc(xl)
+        .y_desc(yl)
+        .axis_desc_style(("sans-serif", 20))
+        .draw()
+        .map_err(|e| plot_error(path, e))?;
+    chart
+        .draw_series(LineSeries::new(g.clone(), RED.stroke_width(2)))
+        .map_err(|e| plot_error(path, e))?
+        .label("ground truth")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(e.clone(), BLUE.stroke_width(2)))
+        .map_err(|e| plot_error(path, e))?
+        .label("estimate")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    if let Some(&start) = g.first() {
+        chart
+            .draw_series(std::iter::once(Circle::new(start, 6, BLACK.filled())))
+            .map_err(|e| plot_error(path, e))?
+            .label("start")
+            .legend(|(x, y)| Circle::new((x + 10, y), 5, BLACK.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 20))
+        .draw()
+        .map_err(|e| plot_error(path, e))?;
+    root.present().map_err(|e| plot_error(path, e))
+}
+
+/// Draws the position error |p_gt − p_est| of corresponding poses over the
+/// distance travelled along the ground truth.
+pub fn write_error_plot(gt: &Trajectory, est: &Trajectory, path: &Path) -> Result<()> {
+    let distances = gt.distances();
+    let errors = position_errors(gt, est);
+    let points: Vec<(f64, f64)> = distances
+        .iter()
+        .copied()
+        .zip(errors.iter().copied())
+        .collect();
+    let x = padded_range(distances.iter().copied());
+    let y_max = errors
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let y = (0.0, if y_max > 1e-9 { 1.05 * y_max } else { 1.0 });
+    let root = BitMapBackend::new(path, PLOT_SIZE).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_error(path, e))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Translation error over distance", ("sans-serif", 28))
+        .margin(20)
+        .x_label_area_size(50)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x.0.max(0.0)..x.1, y.0..y.1)
+        .map_err(|e| plot_error(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("distance travelled [m]")
+        .y_desc("translation error [m]")
+        .axis_desc_style(("sans-serif", 20))
+        .draw()
+        .map_err(|e| plot_error(path, e))?;
+    chart
+        .draw_series(LineSeries::new(points, BLUE.stroke_width(2)))
+        .map_err(|e| plot_error(path, e))?;
+    root.present().map_err(|e| plot_error(path, e))
+}
