@@ -22,7 +22,7 @@ CPP_CXXFLAGS ?= -std=c++17 -O2 -g -Wall -Wextra
 CPP_OPENCV_CFLAGS ?= $(shell pkg-config --cflags opencv4 2>/dev/null || echo -I/usr/include/opencv4)
 CPP_INCLUDES := -Iinclude -I$(CPP_SHIM_DIR) $(CPP_OPENCV_CFLAGS)
 CPP_SPSLAM_LIB := target/release/libspslam.a
-CPP_LDLIBS := $(CPP_SPSLAM_LIB) -lopencv_imgcodecs -lopencv_imgproc -lopencv_core -lpthread -ldl -lm
+CPP_LDLIBS := $(CPP_SPSLAM_LIB) -lopencv_calib3d -lopencv_features2d -lopencv_flann -lopencv_imgcodecs -lopencv_imgproc -lopencv_core -lpthread -ldl -lm
 
 VALGRIND ?= valgrind
 CPP_VALGRIND ?= 1

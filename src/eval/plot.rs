@@ -36,6 +36,39 @@ impl PlotPlane {
     }
 }
 
+/// Font files tried for the plots' text, after `SPSLAM_FONT`.
+const FONT_CANDIDATES: [&str; 2] = [
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+];
+
+/// Registers a TrueType font as "sans-serif" once per process. The font is
+/// read at run time (pure Rust rendering: the library links no freetype or
+/// fontconfig, which matters for the C++ users of `libspslam.a`).
+fn ensure_font(path: &Path) -> Result<()> {
+    static REGISTERED: std::sync::OnceLock<std::result::Result<(), String>> =
+        std::sync::OnceLock::new();
+    let outcome = REGISTERED.get_or_init(|| {
+        let candidates: Vec<std::path::PathBuf> = std::env::var_os("SPSLAM_FONT")
+            .map(std::path::PathBuf::from)
+            .into_iter()
+            .chain(FONT_CANDIDATES.iter().map(std::path::PathBuf::from))
+            .collect();
+        for candidate in &candidates {
+            if let Ok(bytes) = std::fs::read(candidate) {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                return plotters::style::register_font("sans-serif", FontStyle::Normal, bytes)
+                    .map_err(|_| format!("{} is not a usable TrueType font", candidate.display()));
+            }
+        }
+        Err(format!(
+            "no font found for the plot's text (tried {}); install fonts-dejavu-core or set SPSLAM_FONT",
+            candidates.iter().map(|c| c.display().to_string()).collect::<Vec<_>>().join(", ")
+        ))
+    });
+    outcome.clone().map_err(|message| plot_error(path, message))
+}
+
 fn plot_error(path: &Path, e: impl std::fmt::Display) -> EvalError {
     EvalError::Plot {
         path: path.to_path_buf(),
@@ -79,6 +112,7 @@ pub fn write_trajectory_plot(
     path: &Path,
     plane: PlotPlane,
 ) -> Result<()> {
+    ensure_font(path)?;
     let project = |t: &Trajectory| -> Vec<(f64, f64)> {
         t.poses
             .iter()
@@ -136,6 +170,7 @@ pub fn write_trajectory_plot(
 /// Draws the position error |p_gt − p_est| of corresponding poses over the
 /// distance travelled along the ground truth.
 pub fn write_error_plot(gt: &Trajectory, est: &Trajectory, path: &Path) -> Result<()> {
+    ensure_font(path)?;
     let distances = gt.distances();
     let errors = position_errors(gt, est);
     let points: Vec<(f64, f64)> = distances
