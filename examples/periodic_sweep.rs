@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use ndarray::{Array2, Array4};
 use spslam::features::anms;
-use spslam::features::model::SuperPointModel;
+use spslam::features::model::{fill_padded_input, SuperPointModel};
 use spslam::features::nms::{nms_candidates, ValidRegion};
 use spslam::features::periodic::{dominant_phase_fraction, local_contrast, LatticeMask};
 use spslam::features::{default_model_path, AnmsMethod, GrayImage};
@@ -38,11 +38,9 @@ fn main() -> anyhow::Result<()> {
     let mut cached = vec![];
     for (set, path) in frames(&data) {
         let img = GrayImage::load(&path)?;
-        let (w, h) = (img.width(), img.height());
-        let (pw, ph) = (w.div_ceil(8) * 8, h.div_ceil(8) * 8);
-        let input = Array4::from_shape_fn((1, 1, ph, pw), |(_, _, y, x)| {
-            img.view().get(x.min(w - 1), y.min(h - 1)) as f32 / 255.0
-        });
+        let mut buffer = Vec::new();
+        let (pw, ph) = fill_padded_input(img.view(), &mut buffer);
+        let input = Array4::from_shape_vec((1, 1, ph, pw), buffer)?;
         let scores: Array2<f32> = model.run(input.view(), |s, _| s.to_owned())?;
         cached.push((set, img, scores));
     }

@@ -21,8 +21,8 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
 use crate::features::{
-    AnmsMethod, ExtractorConfig, FeatureError, Features, GrayImageView, PeriodicFilterConfig,
-    SuperPointExtractor,
+    AnmsMethod, ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint,
+    PeriodicFilterConfig, SuperPointExtractor,
 };
 
 /// The result of every fallible call.
@@ -606,18 +606,37 @@ pub unsafe extern "C" fn spslam_extract(
     })
 }
 
-fn into_c_features(features: Features) -> SpslamFeatures {
-    let keypoints = features
-        .keypoints
-        .iter()
-        .map(|k| SpslamKeypoint {
+impl From<&Keypoint> for SpslamKeypoint {
+    fn from(k: &Keypoint) -> Self {
+        Self {
             x: k.x,
             y: k.y,
             size: k.size,
             angle: k.angle,
             response: k.response,
             octave: k.octave,
-        })
+        }
+    }
+}
+
+impl From<&SpslamKeypoint> for Keypoint {
+    fn from(k: &SpslamKeypoint) -> Self {
+        Self {
+            x: k.x,
+            y: k.y,
+            size: k.size,
+            angle: k.angle,
+            response: k.response,
+            octave: k.octave,
+        }
+    }
+}
+
+fn into_c_features(features: Features) -> SpslamFeatures {
+    let keypoints = features
+        .keypoints
+        .iter()
+        .map(SpslamKeypoint::from)
         .collect();
     SpslamFeatures {
         keypoints,

@@ -1,10 +1,10 @@
 //! `spslam eval` on KITTI_00: JSON keys and values, and the plots.
 
-mod eval_common;
+mod common;
 
 use std::process::Command;
 
-use eval_common::{assert_sig4, evo_data};
+use common::{assert_sig4, evo_data};
 
 #[test]
 fn eval_kitti_00_writes_json_and_plots() {

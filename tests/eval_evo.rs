@@ -28,9 +28,9 @@
 //! (`evo_ape euroc` reads the ground truth as EuRoC csv and the estimate as TUM.)
 //! The KITTI metric figures (3283 segments, 0.6997 %, 0.2533 deg/100m) are the devkit's.
 
-mod eval_common;
+mod common;
 
-use eval_common::{assert_sig4, evo_data};
+use common::{assert_sig4, evo_data};
 use spslam::eval::{
     evaluate, read_euroc, read_kitti, read_tum, EvalOptions, EvalReport, Pairing, RpeDelta,
 };

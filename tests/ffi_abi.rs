@@ -110,14 +110,7 @@ impl Handle {
             };
             features.keypoints = keypoints
                 .iter()
-                .map(|k| spslam::features::Keypoint {
-                    x: k.x,
-                    y: k.y,
-                    size: k.size,
-                    angle: k.angle,
-                    response: k.response,
-                    octave: k.octave,
-                })
+                .map(spslam::features::Keypoint::from)
                 .collect();
             features.descriptors = descriptors.to_vec();
         }

@@ -155,6 +155,11 @@ fn run_extract(args: ExtractArgs) -> Result<()> {
             .extract(image.view())
             .with_context(|| format!("extraction failed on {}", path.display()))?;
         print_summary(path, &image, &features);
+        let filter = extractor.last_periodic_report();
+        println!(
+            "  periodic filter: {} lattice cells cleared, {} low-contrast candidates rejected",
+            filter.lattice_cells, filter.low_contrast_rejected
+        );
         if let Some(out) = &args.json {
             let out = output_path(out, path, several)?;
             write_json(&out, &features)?;

@@ -13,8 +13,8 @@ use super::orientation::{CircularPatch, PATCH_SIZE};
 use super::periodic::{reject_low_contrast, LatticeMask};
 use super::pyramid::{build_pyramid, ScaleTables};
 use super::{
-    ExtractorConfig, FeatureError, Features, GrayImage, GrayImageView, Keypoint,
-    PeriodicFilterConfig, StageTimings,
+    ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint, PeriodicFilterConfig,
+    StageTimings,
 };
 
 /// What the periodic-artefact filter did on one extraction (for diagnostics).
@@ -317,13 +317,4 @@ fn fallback_detections(config: &ExtractorConfig) -> impl Iterator<Item = (f32, u
 
 fn ms(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
-}
-
-/// Loads an image file and extracts features from it (a convenience for tools).
-pub fn extract_file(
-    extractor: &mut SuperPointExtractor,
-    path: &std::path::Path,
-) -> Result<Features, FeatureError> {
-    let image = GrayImage::load(path)?;
-    extractor.extract(image.view())
 }

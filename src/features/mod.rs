@@ -18,6 +18,6 @@ pub mod runtime;
 
 pub use config::{default_model_path, AnmsMethod, ExtractorConfig, PeriodicFilterConfig};
 pub use error::FeatureError;
-pub use extractor::{extract_file, PeriodicFilterReport, SuperPointExtractor};
+pub use extractor::{PeriodicFilterReport, SuperPointExtractor};
 pub use image::{GrayImage, GrayImageView, MAX_IMAGE_SIDE, MIN_IMAGE_SIDE};
 pub use keypoint::{Features, Keypoint, StageTimings};

@@ -20,11 +20,40 @@ pub fn missing(test: &str, what: &str) {
     eprintln!("SKIPPED {test}: {what} is missing (set SPSLAM_DATA, run `make setup`)");
 }
 
-/// The shared data folder: `SPSLAM_DATA`, else `../shared/data` beside the checkout.
-pub fn data_dir(test: &str) -> Option<PathBuf> {
-    let dir = std::env::var_os("SPSLAM_DATA")
+/// Where the shared data should be: `SPSLAM_DATA`, else `../shared/data` beside the checkout.
+pub fn shared_data_root() -> PathBuf {
+    std::env::var_os("SPSLAM_DATA")
         .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"));
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"))
+}
+
+/// The folder of evo's test trajectories, or `None` after [`missing`].
+pub fn evo_data(test: &str) -> Option<PathBuf> {
+    let dir = shared_data_root().join("trajectories/evo_test_data");
+    if dir.join("KITTI_00_gt.txt").is_file() {
+        Some(dir)
+    } else {
+        missing(
+            test,
+            &format!("evo's test trajectories ({})", dir.display()),
+        );
+        None
+    }
+}
+
+/// Asserts that `actual` equals `expected` to 4 significant digits
+/// (relative difference below 5e-4).
+pub fn assert_sig4(what: &str, actual: f64, expected: f64) {
+    let rel = ((actual - expected) / expected).abs();
+    assert!(
+        rel < 5e-4,
+        "{what}: {actual} vs expected {expected} (relative {rel:e})"
+    );
+}
+
+/// The shared data folder with the KITTI excerpt, or `None` after [`missing`].
+pub fn data_dir(test: &str) -> Option<PathBuf> {
+    let dir = shared_data_root();
     if dir.join("kitti/sequences/06/image_0/000000.png").is_file() {
         Some(dir)
     } else {
