@@ -1,0 +1,46 @@
+//! The `spslam` command line: one module per subcommand.
+
+mod eval;
+mod extract;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "spslam",
+    version,
+    about = "SuperPoint-SLAM3 in Rust: SuperPoint + ANMS features and SLAM"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Extract SuperPoint + ANMS keypoints and descriptors from images.
+    Extract(extract::ExtractArgs),
+    /// Evaluate an estimated trajectory against ground truth (KITTI metric, ATE, RPE).
+    Eval(eval::EvalArgs),
+}
+
+fn main() -> std::process::ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Extract(args) => extract::run_extract(args),
+        Command::Eval(args) => eval::run_eval(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
