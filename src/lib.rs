@@ -10,3 +10,4 @@ pub mod dataset;
 pub mod eval;
 pub mod features;
 pub mod ffi;
+pub mod optim;
