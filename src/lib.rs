@@ -11,3 +11,4 @@ pub mod eval;
 pub mod features;
 pub mod ffi;
 pub mod optim;
+pub mod settings;

@@ -1,0 +1,299 @@
+//! ORB-SLAM3-style settings files (`%YAML:1.0`, read with OpenCV's FileStorage).
+//!
+//! Both of ORB-SLAM3's layouts are accepted:
+//! - the 1.0 layout (`File.version: "1.0"`): `Camera1.fx`…, `Stereo.b` (metres),
+//!   `Stereo.ThDepth`;
+//! - the older one: `Camera.fx`…, `Camera.bf` (fx · baseline), `ThDepth`.
+//!
+//! Extractor keys are ORB-SLAM3's (`ORBextractor.nFeatures`, `scaleFactor`,
+//! `nLevels`, `iniThFAST`, `minThFAST`). spslam adds a few of its own, all
+//! optional:
+//! - `SuperPoint.anms`: `kdtree` (default), `ssc` or `none`;
+//! - `SuperPoint.model`: path of the ONNX model;
+//! - `Tracking.maxDepth`: drop stereo points deeper than this many metres (the
+//!   paper's 20 m filter); absent or 0 turns it off.
+
+mod error;
+mod reader;
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+pub use error::{Result, SettingsError};
+use reader::SettingsReader;
+
+use crate::features::AnmsMethod;
+
+/// A pinhole camera, rectified (stereo) or with radial-tangential distortion.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CameraSettings {
+    /// Focal length along x, pixels.
+    pub fx: f64,
+    /// Focal length along y, pixels.
+    pub fy: f64,
+    /// Principal point x, pixels.
+    pub cx: f64,
+    /// Principal point y, pixels.
+    pub cy: f64,
+    /// OpenCV distortion `[k1, k2, p1, p2, k3]`; zeros for rectified images.
+    pub distortion: [f64; 5],
+    /// Image width in pixels, if given.
+    pub width: Option<u32>,
+    /// Image height in pixels, if given.
+    pub height: Option<u32>,
+    /// Frame rate (ORB-SLAM3 uses it to size the relocalisation window).
+    pub fps: f64,
+    /// Stereo baseline in metres; `None` for monocular and RGB-D.
+    pub baseline: Option<f64>,
+}
+
+impl CameraSettings {
+    /// `fx · baseline`, ORB-SLAM3's `mbf`, when the camera is stereo.
+    pub fn bf(&self) -> Option<f64> {
+        self.baseline.map(|b| b * self.fx)
+    }
+}
+
+/// Feature-extractor parameters, with ORB-SLAM3's names and defaults.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ExtractorSettings {
+    /// Features per image (`ORBextractor.nFeatures`).
+    pub n_features: usize,
+    /// Pyramid scale step (`ORBextractor.scaleFactor`), > 1.
+    pub scale_factor: f64,
+    /// Pyramid levels (`ORBextractor.nLevels`).
+    pub n_levels: usize,
+    /// FAST threshold (`ORBextractor.iniThFAST`); SuperPoint maps it to iniThFAST/4000.
+    pub ini_th_fast: i32,
+    /// Fallback FAST threshold (`ORBextractor.minThFAST`).
+    pub min_th_fast: i32,
+    /// SuperPoint keypoint selection (`SuperPoint.anms`).
+    pub anms: AnmsMethod,
+    /// SuperPoint ONNX model (`SuperPoint.model`), if not the default.
+    pub model: Option<PathBuf>,
+}
+
+impl Default for ExtractorSettings {
+    fn default() -> Self {
+        Self {
+            n_features: 1000,
+            scale_factor: 1.2,
+            n_levels: 8,
+            ini_th_fast: 20,
+            min_th_fast: 7,
+            anms: AnmsMethod::default(),
+            model: None,
+        }
+    }
+}
+
+/// Everything a settings file configures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SlamSettings {
+    /// The (left) camera.
+    pub camera: CameraSettings,
+    /// ORB-SLAM3's `ThDepth`: stereo points closer than `ThDepth · baseline` are "close".
+    pub th_depth: f64,
+    /// RGB-D depth units per metre (`RGBD.DepthMapFactor`, ORB-SLAM3's
+    /// `DepthMapFactor`), e.g. 5000 for TUM.
+    pub depth_map_factor: Option<f64>,
+    /// Drop stereo points deeper than this (metres); `None` = no filter.
+    pub max_depth: Option<f64>,
+    /// Extractor parameters.
+    pub extractor: ExtractorSettings,
+}
+
+/// ORB-SLAM3's default `ThDepth` for KITTI-like stereo.
+pub const DEFAULT_TH_DEPTH: f64 = 40.0;
+
+impl SlamSettings {
+    /// Settings for a rectified stereo camera with default extractor values.
+    pub fn rectified_stereo(fx: f64, fy: f64, cx: f64, cy: f64, baseline: f64) -> Self {
+        Self {
+            camera: CameraSettings {
+                fx,
+                fy,
+                cx,
+                cy,
+                distortion: [0.0; 5],
+                width: None,
+                height: None,
+                fps: 10.0,
+                baseline: Some(baseline),
+            },
+            th_depth: DEFAULT_TH_DEPTH,
+            depth_map_factor: None,
+            max_depth: None,
+            extractor: ExtractorSettings::default(),
+        }
+    }
+
+    /// The distance in metres below which a stereo point is "close"
+    /// (ORB-SLAM3's `mThDepth = bf · ThDepth / fx`).
+    pub fn close_depth(&self) -> Option<f64> {
+        self.camera.baseline.map(|b| b * self.th_depth)
+    }
+
+    /// Reads and checks a settings file.
+    pub fn from_file(path: impl AsRef<Path>) -> Result<Self> {
+        let reader = SettingsReader::open(path.as_ref())?;
+        let camera = read_camera(&reader)?;
+        let th_depth = reader
+            .optional_f64(&["Stereo.ThDepth", "ThDepth"])?
+            .unwrap_or(DEFAULT_TH_DEPTH);
+        if th_depth <= 0.0 {
+            return Err(reader.invalid("Stereo.ThDepth", th_depth, "must be positive"));
+        }
+        let depth_map_factor = reader.optional_f64(&["RGBD.DepthMapFactor", "DepthMapFactor"])?;
+        if let Some(f) = depth_map_factor {
+            if f <= 0.0 {
+                return Err(reader.invalid("RGBD.DepthMapFactor", f, "must be positive"));
+            }
+        }
+        let max_depth = match reader.optional_f64(&["Tracking.maxDepth"])? {
+            Some(d) if d < 0.0 => {
+                return Err(reader.invalid("Tracking.maxDepth", d, "must be ≥ 0 (0 = off)"))
+            }
+            Some(d) if d > 0.0 => Some(d),
+            _ => None,
+        };
+        let extractor = read_extractor(&reader)?;
+        Ok(Self {
+            camera,
+            th_depth,
+            depth_map_factor,
+            max_depth,
+            extractor,
+        })
+    }
+}
+
+const CAMERA_HINT: &str =
+    "; ORB-SLAM3 files name it `Camera1.<key>` (File.version 1.0) or `Camera.<key>`";
+
+fn read_camera(reader: &SettingsReader) -> Result<CameraSettings> {
+    let value = |key: &str| -> Result<f64> {
+        reader.required_f64(
+            &[&format!("Camera1.{key}"), &format!("Camera.{key}")],
+            CAMERA_HINT,
+        )
+    };
+    let optional = |key: &str| -> Result<f64> {
+        Ok(reader
+            .optional_f64(&[&format!("Camera1.{key}"), &format!("Camera.{key}")])?
+            .unwrap_or(0.0))
+    };
+    let (fx, fy, cx, cy) = (value("fx")?, value("fy")?, value("cx")?, value("cy")?);
+    for (key, v) in [("Camera1.fx", fx), ("Camera1.fy", fy)] {
+        if v <= 0.0 {
+            return Err(reader.invalid(key, v, "focal lengths must be positive"));
+        }
+    }
+    let distortion = [
+        optional("k1")?,
+        optional("k2")?,
+        optional("p1")?,
+        optional("p2")?,
+        optional("k3")?,
+    ];
+    let dimension = |key: &str| -> Result<Option<u32>> {
+        match reader.optional_i64(&[key])? {
+            None => Ok(None),
+            Some(v) if (1..=100_000).contains(&v) => Ok(u32::try_from(v).ok()),
+            Some(v) => Err(reader.invalid(key, v, "must be between 1 and 100000 pixels")),
+        }
+    };
+    let width = dimension("Camera.width")?;
+    let height = dimension("Camera.height")?;
+    let fps = reader.optional_f64(&["Camera.fps"])?.unwrap_or(10.0);
+    if fps <= 0.0 {
+        return Err(reader.invalid("Camera.fps", fps, "must be positive"));
+    }
+    let baseline = match (
+        reader.optional_f64(&["Stereo.b"])?,
+        reader.optional_f64(&["Camera.bf"])?,
+    ) {
+        (Some(b), _) => Some(("Stereo.b", b)),
+        (None, Some(bf)) => Some(("Camera.bf", bf / fx)),
+        (None, None) => None,
+    };
+    if let Some((key, b)) = baseline {
+        if b <= 0.0 {
+            return Err(reader.invalid(key, b, "the stereo baseline must be positive"));
+        }
+    }
+    Ok(CameraSettings {
+        fx,
+        fy,
+        cx,
+        cy,
+        distortion,
+        width,
+        height,
+        fps,
+        baseline: baseline.map(|(_, b)| b),
+    })
+}
+
+fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
+    let defaults = ExtractorSettings::default();
+    let n_features = reader
+        .optional_i64(&["ORBextractor.nFeatures"])?
+        .unwrap_or(defaults.n_features as i64);
+    if !(1..=100_000).contains(&n_features) {
+        return Err(reader.invalid("ORBextractor.nFeatures", n_features, "must be 1..=100000"));
+    }
+    let scale_factor = reader
+        .optional_f64(&["ORBextractor.scaleFactor"])?
+        .unwrap_or(defaults.scale_factor);
+    if !(scale_factor > 1.0 && scale_factor <= 4.0) {
+        return Err(reader.invalid(
+            "ORBextractor.scaleFactor",
+            scale_factor,
+            "must be in (1, 4]",
+        ));
+    }
+    let n_levels = reader
+        .optional_i64(&["ORBextractor.nLevels"])?
+        .unwrap_or(defaults.n_levels as i64);
+    if !(1..=32).contains(&n_levels) {
+        return Err(reader.invalid("ORBextractor.nLevels", n_levels, "must be 1..=32"));
+    }
+    let threshold = |key: &str, default: i32| -> Result<i32> {
+        match reader.optional_i64(&[key])? {
+            None => Ok(default),
+            Some(v) if (1..=255).contains(&v) => Ok(v as i32),
+            Some(v) => Err(reader.invalid(key, v, "must be 1..=255")),
+        }
+    };
+    let ini_th_fast = threshold("ORBextractor.iniThFAST", defaults.ini_th_fast)?;
+    let min_th_fast = threshold("ORBextractor.minThFAST", defaults.min_th_fast)?;
+    let anms = match reader.optional_string(&["SuperPoint.anms"])? {
+        None => defaults.anms,
+        Some(text) => text
+            .parse::<AnmsMethod>()
+            .map_err(|_| reader.invalid("SuperPoint.anms", &text, "use kdtree, ssc or none"))?,
+    };
+    let model = reader
+        .optional_string(&["SuperPoint.model"])?
+        .map(|m| resolve_beside(reader.path(), &m));
+    Ok(ExtractorSettings {
+        n_features: n_features as usize,
+        scale_factor,
+        n_levels: n_levels as usize,
+        ini_th_fast,
+        min_th_fast,
+        anms,
+        model,
+    })
+}
+
+/// A relative path in a settings file is taken relative to the file's folder.
+fn resolve_beside(settings: &Path, path: &str) -> PathBuf {
+    let p = PathBuf::from(path);
+    if p.is_absolute() {
+        return p;
+    }
+    settings.parent().map_or(p.clone(), |dir| dir.join(&p))
+}

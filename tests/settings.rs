@@ -1,0 +1,175 @@
+//! ORB-SLAM3-style settings files: both layouts, spslam's own keys, and a
+//! typed error naming the file and key for each kind of bad input.
+
+use std::path::{Path, PathBuf};
+
+use spslam::features::AnmsMethod;
+use spslam::settings::{SettingsError, SlamSettings, DEFAULT_TH_DEPTH};
+
+fn write(name: &str, text: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("spslam_settings_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join(name);
+    std::fs::write(&path, text).expect("write settings");
+    path
+}
+
+const OLD_LAYOUT: &str = r#"%YAML:1.0
+Camera.fx: 435.2
+Camera.fy: 435.3
+Camera.cx: 367.4
+Camera.cy: 252.2
+Camera.k1: -0.28
+Camera.k2: 0.07
+Camera.p1: 0.0002
+Camera.p2: 1.76e-05
+Camera.width: 752
+Camera.height: 480
+Camera.fps: 20.0
+Camera.bf: 47.90639384423901
+ThDepth: 35.0
+ORBextractor.nFeatures: 1200
+ORBextractor.scaleFactor: 1.2
+ORBextractor.nLevels: 8
+ORBextractor.iniThFAST: 20
+ORBextractor.minThFAST: 7
+"#;
+
+#[test]
+fn reads_the_shipped_kitti_file_in_orb_slam3_1_0_layout() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("settings/KITTI04-12.yaml");
+    let s = SlamSettings::from_file(&path).expect("shipped settings must read");
+    assert_eq!(s.camera.fx, 707.0912);
+    assert_eq!(s.camera.cy, 183.1104);
+    assert_eq!(s.camera.baseline, Some(0.53715));
+    assert!((s.camera.bf().unwrap_or(0.0) - 379.8145).abs() < 1e-3);
+    assert_eq!((s.camera.width, s.camera.height), (Some(1226), Some(370)));
+    assert_eq!(s.th_depth, 40.0);
+    assert!((s.close_depth().unwrap_or(0.0) - 21.486).abs() < 1e-3);
+    assert_eq!(s.extractor.n_features, 1000);
+    assert_eq!(s.extractor.n_levels, 8);
+    assert_eq!(s.extractor.anms, AnmsMethod::Kdtree);
+    assert_eq!(s.max_depth, None, "maxDepth 0 means off");
+}
+
+#[test]
+fn reads_the_older_layout_with_camera_bf() {
+    let s = SlamSettings::from_file(write("old.yaml", OLD_LAYOUT)).expect("old layout");
+    assert_eq!(s.camera.fx, 435.2);
+    assert!((s.camera.baseline.unwrap_or(0.0) - 47.90639384423901 / 435.2).abs() < 1e-12);
+    assert_eq!(s.camera.distortion, [-0.28, 0.07, 0.0002, 1.76e-05, 0.0]);
+    assert_eq!(s.th_depth, 35.0);
+    assert_eq!(s.camera.fps, 20.0);
+    assert_eq!(s.extractor.n_features, 1200);
+}
+
+#[test]
+fn spslam_keys_and_defaults() {
+    let text = "%YAML:1.0\nCamera.fx: 400.0\nCamera.fy: 400.0\nCamera.cx: 320.0\nCamera.cy: 240.0\n\
+                SuperPoint.anms: \"ssc\"\nSuperPoint.model: \"models/sp.onnx\"\nTracking.maxDepth: 20.0\n\
+                RGBD.DepthMapFactor: 5000.0\n";
+    let path = write("ours.yaml", text);
+    let s = SlamSettings::from_file(&path).expect("spslam keys");
+    assert_eq!(s.extractor.anms, AnmsMethod::Ssc);
+    assert_eq!(
+        s.extractor.model.as_deref(),
+        path.parent().map(|d| d.join("models/sp.onnx")).as_deref(),
+        "relative model paths are taken beside the settings file"
+    );
+    assert_eq!(s.max_depth, Some(20.0));
+    assert_eq!(s.depth_map_factor, Some(5000.0));
+    assert_eq!(s.camera.baseline, None, "no baseline: not stereo");
+    assert_eq!(s.th_depth, DEFAULT_TH_DEPTH);
+    assert_eq!(s.extractor.scale_factor, 1.2);
+}
+
+fn error_for(name: &str, text: &str) -> SettingsError {
+    match SlamSettings::from_file(write(name, text)) {
+        Ok(s) => panic!("{name} should be rejected, read {s:?}"),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn bad_files_give_typed_errors_that_name_the_key() {
+    let missing = error_for(
+        "missing.yaml",
+        &OLD_LAYOUT.replace("Camera.fy: 435.3\n", ""),
+    );
+    assert!(
+        matches!(&missing, SettingsError::Missing { key, .. } if key == "Camera1.fy"),
+        "{missing}"
+    );
+    assert!(missing.to_string().contains("Camera.<key>"), "{missing}");
+
+    let wrong = error_for(
+        "wrong.yaml",
+        &OLD_LAYOUT.replace("Camera.fx: 435.2", "Camera.fx: \"big\""),
+    );
+    assert!(
+        matches!(&wrong, SettingsError::WrongType { key, .. } if key == "Camera.fx"),
+        "{wrong}"
+    );
+
+    for (name, from, to, key) in [
+        (
+            "negbf.yaml",
+            "Camera.bf: 47.90639384423901",
+            "Camera.bf: -4.0",
+            "Camera.bf",
+        ),
+        (
+            "levels.yaml",
+            "ORBextractor.nLevels: 8",
+            "ORBextractor.nLevels: 0",
+            "ORBextractor.nLevels",
+        ),
+        (
+            "scale.yaml",
+            "ORBextractor.scaleFactor: 1.2",
+            "ORBextractor.scaleFactor: 0.8",
+            "ORBextractor.scaleFactor",
+        ),
+        (
+            "focal.yaml",
+            "Camera.fx: 435.2",
+            "Camera.fx: 0.0",
+            "Camera1.fx",
+        ),
+        (
+            "fast.yaml",
+            "ORBextractor.iniThFAST: 20",
+            "ORBextractor.iniThFAST: 300",
+            "ORBextractor.iniThFAST",
+        ),
+    ] {
+        let e = error_for(name, &OLD_LAYOUT.replace(from, to));
+        assert!(
+            matches!(&e, SettingsError::Invalid { key: k, .. } if k == key),
+            "{name}: {e}"
+        );
+    }
+
+    let anms = error_for(
+        "anms.yaml",
+        &format!("{OLD_LAYOUT}SuperPoint.anms: \"octree\"\n"),
+    );
+    assert!(anms.to_string().contains("kdtree, ssc or none"), "{anms}");
+}
+
+#[test]
+fn unreadable_files_are_reported_with_their_path() {
+    let absent = SlamSettings::from_file("/nonexistent/settings.yaml");
+    assert!(
+        matches!(&absent, Err(SettingsError::NotFound { path }) if path == Path::new("/nonexistent/settings.yaml")),
+        "{absent:?}"
+    );
+    let garbage = SlamSettings::from_file(write(
+        "garbage.yaml",
+        "%YAML:1.0\nCamera.fx: [1, 2\n  : :\n",
+    ));
+    assert!(
+        matches!(&garbage, Err(SettingsError::Parse { .. })),
+        "{garbage:?}"
+    );
+}
