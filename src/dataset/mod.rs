@@ -1,5 +1,6 @@
 //! Dataset readers: KITTI odometry, EuRoC/ASL and TUM RGB-D folder layouts,
-//! plus stereo rectification for EuRoC's distorted cameras.
+//! plus stereo rectification for EuRoC's distorted cameras, and a generator
+//! of synthetic stereo/RGB-D sequences with exact ground truth ([`synthetic`]).
 //!
 //! Readers check the layout when opening and return typed [`DatasetError`]s
 //! naming the offending path (and 1-based line for text files). They expose
@@ -14,6 +15,7 @@ mod euroc_csv;
 mod kitti;
 mod kitti_calib;
 mod rectify;
+pub mod synthetic;
 mod text;
 mod tum;
 mod yaml;

@@ -2,6 +2,7 @@
 
 mod eval;
 mod extract;
+mod synth;
 
 use clap::{Parser, Subcommand};
 
@@ -22,6 +23,8 @@ enum Command {
     Extract(extract::ExtractArgs),
     /// Evaluate an estimated trajectory against ground truth (KITTI metric, ATE, RPE).
     Eval(eval::EvalArgs),
+    /// Write a synthetic stereo/RGB-D sequence with exact ground truth (KITTI layout).
+    Synth(synth::SynthArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -35,6 +38,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Extract(args) => extract::run_extract(args),
         Command::Eval(args) => eval::run_eval(args),
+        Command::Synth(args) => synth::run_synth(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

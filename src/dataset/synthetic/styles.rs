@@ -1,0 +1,138 @@
+//! Texture presets: façades, asphalt, indoor walls, floor tiles, ceilings.
+//! Sizes are in metres; each preset mixes corners (rectangles, checkers)
+//! and blobs (discs) at several scales with texture-poor zones.
+
+use super::texture::{ProceduralTexture, ShapeKind, ShapeLayer, Texture};
+
+/// A shape layer with random sizes and positions.
+fn scatter(
+    cell: f64,
+    occupancy: f64,
+    kind: ShapeKind,
+    size: [f64; 2],
+    gray: [f64; 2],
+) -> ShapeLayer {
+    ShapeLayer {
+        cell_u: cell,
+        cell_v: cell,
+        occupancy,
+        kind,
+        size_min: size[0],
+        size_max: size[1],
+        regular: false,
+        gray_min: gray[0],
+        gray_max: gray[1],
+        detail: true,
+    }
+}
+
+/// A regular grid of centred rectangles (windows, doors, lamps, tiles).
+fn grid(cell: [f64; 2], occupancy: f64, size: f64, gray: [f64; 2]) -> ShapeLayer {
+    ShapeLayer {
+        cell_u: cell[0],
+        cell_v: cell[1],
+        occupancy,
+        kind: ShapeKind::Rectangle,
+        size_min: size,
+        size_max: size,
+        regular: true,
+        gray_min: gray[0],
+        gray_max: gray[1],
+        detail: false,
+    }
+}
+
+/// A building façade: rows of windows, panels and posters, checkers,
+/// discs and small marks; a quarter of 5-m zones are bare plaster.
+pub fn facade(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 150.0,
+        shading: 22.0,
+        shading_wavelength: 6.0,
+        flat_zone_size: 5.0,
+        flat_zone_fraction: 0.25,
+        layers: vec![
+            grid([3.0, 3.2], 0.85, 0.5, [25.0, 110.0]),
+            scatter(2.3, 0.35, ShapeKind::Rectangle, [0.3, 0.8], [40.0, 220.0]),
+            scatter(1.1, 0.25, ShapeKind::Checker, [0.25, 0.55], [10.0, 90.0]),
+            scatter(0.7, 0.35, ShapeKind::Disc, [0.3, 0.7], [30.0, 230.0]),
+            scatter(0.3, 0.45, ShapeKind::Rectangle, [0.3, 0.7], [50.0, 200.0]),
+            scatter(0.1, 0.3, ShapeKind::Rectangle, [0.3, 0.7], [110.0, 190.0]),
+        ],
+    })
+}
+
+/// Asphalt: repair patches, stains and manholes, gravel speckle; a third
+/// of 6-m zones are fresh, even tarmac.
+pub fn asphalt(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 95.0,
+        shading: 12.0,
+        shading_wavelength: 8.0,
+        flat_zone_size: 6.0,
+        flat_zone_fraction: 0.3,
+        layers: vec![
+            scatter(3.0, 0.3, ShapeKind::Rectangle, [0.3, 0.8], [65.0, 135.0]),
+            scatter(1.3, 0.25, ShapeKind::Disc, [0.3, 0.7], [40.0, 170.0]),
+            scatter(0.6, 0.2, ShapeKind::Checker, [0.2, 0.5], [40.0, 80.0]),
+            scatter(0.35, 0.4, ShapeKind::Rectangle, [0.3, 0.7], [60.0, 150.0]),
+            scatter(0.08, 0.5, ShapeKind::Rectangle, [0.3, 0.7], [55.0, 165.0]),
+        ],
+    })
+}
+
+/// An indoor wall: doors, posters, notices, switches; a third of 2-m
+/// zones are bare paint.
+pub fn indoor_wall(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 175.0,
+        shading: 15.0,
+        shading_wavelength: 3.0,
+        flat_zone_size: 2.0,
+        flat_zone_fraction: 0.3,
+        layers: vec![
+            scatter(1.6, 0.5, ShapeKind::Rectangle, [0.4, 0.85], [40.0, 230.0]),
+            scatter(0.7, 0.3, ShapeKind::Checker, [0.25, 0.6], [10.0, 90.0]),
+            scatter(0.45, 0.4, ShapeKind::Disc, [0.3, 0.7], [30.0, 230.0]),
+            scatter(0.2, 0.45, ShapeKind::Rectangle, [0.3, 0.7], [50.0, 210.0]),
+            scatter(0.06, 0.3, ShapeKind::Rectangle, [0.3, 0.7], [120.0, 210.0]),
+        ],
+    })
+}
+
+/// Floor tiles of slightly different grays with dark joints, plus marks.
+pub fn floor_tiles(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 70.0,
+        shading: 8.0,
+        shading_wavelength: 4.0,
+        flat_zone_size: 3.0,
+        flat_zone_fraction: 0.3,
+        layers: vec![
+            grid([0.6, 0.6], 1.0, 0.9, [110.0, 160.0]),
+            scatter(0.9, 0.25, ShapeKind::Disc, [0.2, 0.6], [40.0, 210.0]),
+            scatter(0.25, 0.3, ShapeKind::Rectangle, [0.3, 0.7], [60.0, 200.0]),
+        ],
+    })
+}
+
+/// A ceiling: bright lamp panels in a grid over plain, slightly marked board.
+pub fn ceiling(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 200.0,
+        shading: 10.0,
+        shading_wavelength: 4.0,
+        flat_zone_size: 3.0,
+        flat_zone_fraction: 0.5,
+        layers: vec![
+            grid([2.4, 2.4], 0.8, 0.35, [235.0, 255.0]),
+            scatter(0.8, 0.3, ShapeKind::Rectangle, [0.2, 0.6], [120.0, 190.0]),
+            scatter(0.3, 0.3, ShapeKind::Disc, [0.3, 0.7], [100.0, 180.0]),
+        ],
+    })
+}
