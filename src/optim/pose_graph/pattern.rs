@@ -1,0 +1,145 @@
+//! The sparsity pattern of the normal equations, built once per graph.
+//!
+//! Free nodes become block columns of size `N` (in node order). `H` is stored
+//! as its upper triangle in compressed sparse columns: block column `c` holds
+//! the full `N×N` blocks of the connected block rows `r < c` (ascending) and
+//! then the upper triangle of its diagonal block. Every block is described by
+//! the start, in the value array, of each of its `N` columns, so entry
+//! `(a, b)` of a block lives at `column_starts[b] + a` and assembly is a
+//! scatter with no search.
+
+/// Where one `N×N` block of `H` lives in the CSC value array.
+pub(super) type BlockSlot<const N: usize> = [usize; N];
+
+/// Where one edge's contributions go.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct EdgeSlots {
+    /// Block column of the `from` node, if it is free.
+    pub from_block: Option<usize>,
+    /// Block column of the `to` node, if it is free.
+    pub to_block: Option<usize>,
+    /// The off-diagonal block, if both are free: its index in
+    /// `off_diagonal_slots` and whether `from` is its block row
+    /// (`H_from,to`) rather than its block column (`H_to,from`).
+    pub off_diagonal: Option<(usize, bool)>,
+}
+
+/// The CSC structure of the upper triangle of `H` and the block positions.
+#[derive(Debug, Clone)]
+pub(super) struct BlockPattern<const N: usize> {
+    /// Block column of each node, `None` for nodes held constant.
+    pub block_of_node: Vec<Option<usize>>,
+    /// Number of free nodes (block columns).
+    pub block_count: usize,
+    /// CSC column pointers (`N · block_count + 1`).
+    pub column_pointers: Vec<usize>,
+    /// CSC row indices, sorted within each column.
+    pub row_indices: Vec<usize>,
+    /// The diagonal block of each block column.
+    pub diagonal_slots: Vec<BlockSlot<N>>,
+    /// The distinct off-diagonal blocks.
+    pub off_diagonal_slots: Vec<BlockSlot<N>>,
+    /// Per edge, where its blocks go.
+    pub edge_slots: Vec<EdgeSlots>,
+    /// Index in the value array of each scalar diagonal entry `H_kk`.
+    pub diagonal_value_indices: Vec<usize>,
+}
+
+impl<const N: usize> BlockPattern<N> {
+    /// Builds the pattern for `edges` (pairs `(from, to)`) over nodes whose
+    /// `held_constant` flag is false.
+    pub fn new(held_constant: &[bool], edges: &[(usize, usize)]) -> Self {
+        let mut block_of_node = vec![None; held_constant.len()];
+        let mut block_count = 0;
+        for (node, &constant) in held_constant.iter().enumerate() {
+            if !constant {
+                block_of_node[node] = Some(block_count);
+                block_count += 1;
+            }
+        }
+
+        // Block rows above the diagonal in each block column.
+        let mut rows_of_column: Vec<Vec<usize>> = vec![Vec::new(); block_count];
+        for &(from, to) in edges {
+            if let (Some(a), Some(b)) = (block_of_node[from], block_of_node[to]) {
+                rows_of_column[a.max(b)].push(a.min(b));
+            }
+        }
+        for rows in &mut rows_of_column {
+            rows.sort_unstable();
+            rows.dedup();
+        }
+
+        let dimension = N * block_count;
+        let mut column_pointers = Vec::with_capacity(dimension + 1);
+        let mut row_indices = Vec::new();
+        let mut diagonal_slots = Vec::with_capacity(block_count);
+        let mut diagonal_value_indices = Vec::with_capacity(dimension);
+        // Slot of block (row, column) = first slot of the column + position of row.
+        let mut first_slot_of_column = Vec::with_capacity(block_count + 1);
+        let mut off_diagonal_slots = Vec::new();
+        column_pointers.push(0);
+        for (column, rows) in rows_of_column.iter().enumerate() {
+            first_slot_of_column.push(off_diagonal_slots.len());
+            let mut slots = vec![[0usize; N]; rows.len()];
+            let mut diagonal = [0usize; N];
+            for b in 0..N {
+                let start = row_indices.len();
+                for (position, &row) in rows.iter().enumerate() {
+                    slots[position][b] = start + position * N;
+                    row_indices.extend(row * N..row * N + N);
+                }
+                diagonal[b] = row_indices.len();
+                row_indices.extend(column * N..column * N + b + 1);
+                diagonal_value_indices.push(row_indices.len() - 1);
+                column_pointers.push(row_indices.len());
+            }
+            diagonal_slots.push(diagonal);
+            off_diagonal_slots.extend(slots);
+        }
+
+        let edge_slots = edges
+            .iter()
+            .map(|&(from, to)| {
+                let from_block = block_of_node[from];
+                let to_block = block_of_node[to];
+                let off_diagonal = match (from_block, to_block) {
+                    (Some(a), Some(b)) => {
+                        let (row, column) = (a.min(b), a.max(b));
+                        let rows = &rows_of_column[column];
+                        rows.binary_search(&row)
+                            .ok()
+                            .map(|position| (first_slot_of_column[column] + position, a < b))
+                    }
+                    _ => None,
+                };
+                EdgeSlots {
+                    from_block,
+                    to_block,
+                    off_diagonal,
+                }
+            })
+            .collect();
+
+        Self {
+            block_of_node,
+            block_count,
+            column_pointers,
+            row_indices,
+            diagonal_slots,
+            off_diagonal_slots,
+            edge_slots,
+            diagonal_value_indices,
+        }
+    }
+
+    /// Size of the linear system (`N` per free node).
+    pub fn dimension(&self) -> usize {
+        N * self.block_count
+    }
+
+    /// Number of stored values (upper triangle).
+    pub fn value_count(&self) -> usize {
+        self.row_indices.len()
+    }
+}
