@@ -3,21 +3,27 @@
 
 pub mod anms;
 mod config;
+pub mod descriptor_set;
 pub mod descriptors;
 pub mod draw;
 mod error;
 mod extractor;
+pub mod frontend;
 mod image;
 mod keypoint;
 pub mod model;
 pub mod nms;
+pub mod orb;
 pub mod orientation;
 pub mod periodic;
 pub mod pyramid;
 pub mod runtime;
 
 pub use config::{default_model_path, AnmsMethod, ExtractorConfig, PeriodicFilterConfig};
+pub use descriptor_set::{DescriptorKind, DescriptorRef, DescriptorSet};
 pub use error::FeatureError;
 pub use extractor::{PeriodicFilterReport, SuperPointExtractor};
+pub use frontend::{FeatureExtractor, FrameFeatures};
 pub use image::{GrayImage, GrayImageView, MAX_IMAGE_SIDE, MIN_IMAGE_SIDE};
 pub use keypoint::{Features, Keypoint, StageTimings};
+pub use orb::{OrbConfig, OrbExtractor};

@@ -1,0 +1,71 @@
+//! One interface over the feature extractors (SuperPoint with or without ANMS,
+//! ORB), so that the SLAM front end does not care which one runs.
+
+use super::descriptor_set::DescriptorSet;
+use super::pyramid::ScaleTables;
+use super::{FeatureError, Features, GrayImageView, Keypoint, StageTimings, SuperPointExtractor};
+
+/// Keypoints and their descriptors (of either kind) for one image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameFeatures {
+    /// Keypoints in level-0 pixels, with `octave` set.
+    pub keypoints: Vec<Keypoint>,
+    /// One descriptor row per keypoint.
+    pub descriptors: DescriptorSet,
+    /// Time per stage (extractors without a network leave the network stages at 0).
+    pub timings: StageTimings,
+}
+
+impl FrameFeatures {
+    /// Number of keypoints.
+    pub fn len(&self) -> usize {
+        self.keypoints.len()
+    }
+
+    /// True when there is no keypoint.
+    pub fn is_empty(&self) -> bool {
+        self.keypoints.is_empty()
+    }
+}
+
+impl From<Features> for FrameFeatures {
+    fn from(features: Features) -> Self {
+        Self {
+            keypoints: features.keypoints,
+            descriptors: DescriptorSet::Float {
+                dim: features.descriptor_len,
+                data: features.descriptors,
+            },
+            timings: features.timings,
+        }
+    }
+}
+
+/// A feature extractor: image in, keypoints and descriptors out, with
+/// ORB-SLAM3's scale tables describing the octaves it reports.
+pub trait FeatureExtractor: Send {
+    /// Extracts keypoints (level-0 coordinates) and descriptors from a gray image.
+    fn extract(&mut self, image: GrayImageView<'_>) -> Result<FrameFeatures, FeatureError>;
+    /// The scale and sigma² tables the keypoints' `octave` refers to.
+    fn scale_tables(&self) -> &ScaleTables;
+    /// A short name for logs and reports, e.g. `superpoint+kdtree` or `orb`.
+    fn name(&self) -> &str;
+}
+
+impl FeatureExtractor for SuperPointExtractor {
+    fn extract(&mut self, image: GrayImageView<'_>) -> Result<FrameFeatures, FeatureError> {
+        SuperPointExtractor::extract(self, image).map(FrameFeatures::from)
+    }
+
+    fn scale_tables(&self) -> &ScaleTables {
+        SuperPointExtractor::scale_tables(self)
+    }
+
+    fn name(&self) -> &str {
+        match self.config().anms {
+            super::AnmsMethod::Kdtree => "superpoint+anms-kdtree",
+            super::AnmsMethod::Ssc => "superpoint+anms-ssc",
+            super::AnmsMethod::None => "superpoint",
+        }
+    }
+}
