@@ -82,4 +82,60 @@ pub enum OptimError {
         /// The scalar column at which the Cholesky pivot was not positive.
         pivot: usize,
     },
+
+    // ---- Pose-only optimisation and local bundle adjustment
+    // ---- (src/optim/pose_only/, src/optim/local_ba/) ----
+    /// Fewer correspondences than the solver needs to constrain the unknowns.
+    #[error("too few correspondences: {actual} given, at least {required} required")]
+    InsufficientCorrespondences {
+        /// The minimum the solver accepts.
+        required: usize,
+        /// How many were given.
+        actual: usize,
+    },
+    /// The bundle-adjustment problem has no observations at all.
+    #[error("the problem has no observations")]
+    NoObservations,
+    /// A bundle-adjustment observation refers to a pose that does not exist.
+    #[error("observation {observation} refers to pose {pose}, but there are only {poses} poses")]
+    PoseIndexOutOfRange {
+        /// Index of the observation.
+        observation: usize,
+        /// The pose index it gives.
+        pose: usize,
+        /// How many poses the problem has.
+        poses: usize,
+    },
+    /// A bundle-adjustment observation refers to a point that does not exist.
+    #[error(
+        "observation {observation} refers to point {point}, but there are only {points} points"
+    )]
+    PointIndexOutOfRange {
+        /// Index of the observation.
+        observation: usize,
+        /// The point index it gives.
+        point: usize,
+        /// How many points the problem has.
+        points: usize,
+    },
+    /// The per-pose `fixed` flags do not match the number of poses.
+    #[error("{flags} fixed flags given for {poses} poses")]
+    FixedFlagsLength {
+        /// Number of flags.
+        flags: usize,
+        /// Number of poses.
+        poses: usize,
+    },
+    /// An input value is NaN or infinite (or an information weight is not
+    /// positive, or a camera focal length not positive).
+    #[error("{what} {index} is not finite or out of its valid range")]
+    InvalidValue {
+        /// What kind of input: "camera", "pose", "point" or "observation".
+        what: &'static str,
+        /// Its index (0 for the camera).
+        index: usize,
+    },
+    /// The cost at the initial estimate is not finite (a point at zero depth).
+    #[error("the cost at the initial estimate is not finite (a point at zero depth?)")]
+    NonFiniteInitialCost,
 }

@@ -4,6 +4,7 @@
 pub mod damping;
 pub mod error;
 pub mod lie;
+pub mod pose_only;
 pub mod pose_graph;
 pub mod reprojection;
 
