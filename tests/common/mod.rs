@@ -3,6 +3,8 @@
 
 use std::path::PathBuf;
 
+pub mod pose_graph_problems;
+
 use spslam::features::{default_model_path, ExtractorConfig, GrayImage, SuperPointExtractor};
 
 /// True when running under CI, where missing data is a failure, not a skip.
