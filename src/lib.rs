@@ -10,5 +10,6 @@ pub mod dataset;
 pub mod eval;
 pub mod features;
 pub mod ffi;
+pub mod matching;
 pub mod optim;
 pub mod settings;

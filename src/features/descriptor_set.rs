@@ -36,11 +36,22 @@ pub trait DescriptorDistance {
 
 impl DescriptorDistance for [f32] {
     fn distance_to(&self, other: &Self) -> f32 {
-        self.iter()
-            .zip(other)
+        // Eight partial sums so that the compiler can vectorise the loop.
+        let mut acc = [0.0f32; 8];
+        let (a_chunks, b_chunks) = (self.chunks_exact(8), other.chunks_exact(8));
+        let (a_rest, b_rest) = (a_chunks.remainder(), b_chunks.remainder());
+        for (a, b) in a_chunks.zip(b_chunks) {
+            for k in 0..8 {
+                let d = a[k] - b[k];
+                acc[k] += d * d;
+            }
+        }
+        let tail: f32 = a_rest
+            .iter()
+            .zip(b_rest)
             .map(|(a, b)| (a - b) * (a - b))
-            .sum::<f32>()
-            .sqrt()
+            .sum();
+        (acc.iter().sum::<f32>() + tail).sqrt()
     }
 }
 

@@ -1,0 +1,119 @@
+//! All-pairs matching with Lowe's ratio test and a mutual (cross) check.
+
+use super::{check_kinds, BestTwo, MatchError};
+use crate::features::descriptor_set::DescriptorDistance;
+use crate::features::DescriptorSet;
+
+/// A correspondence between query row `query` and train row `train`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Match {
+    /// Index on the query side.
+    pub query: usize,
+    /// Index on the train side.
+    pub train: usize,
+    /// Descriptor distance (L2, or Hamming bits).
+    pub distance: f32,
+}
+
+/// The tests a brute-force match must pass.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MatchParams {
+    /// Lowe's ratio: best < ratio * second best (strict; ties fail).
+    /// `None` disables the test. The paper uses 0.7.
+    pub ratio: Option<f32>,
+    /// The best distance must be at most this.
+    pub max_distance: f32,
+    /// Keep a match only when the query is also the train row's nearest query
+    /// (the first one on ties).
+    pub mutual: bool,
+}
+
+impl Default for MatchParams {
+    /// Ratio 0.7, no distance limit, mutual check on.
+    fn default() -> Self {
+        Self {
+            ratio: Some(0.7),
+            max_distance: f32::INFINITY,
+            mutual: true,
+        }
+    }
+}
+
+/// Matches every query row against all train rows. Returns the accepted
+/// matches in query order. Errors when the kinds differ or a parameter is
+/// out of range.
+pub fn match_brute_force(
+    query: &DescriptorSet,
+    train: &DescriptorSet,
+    params: MatchParams,
+) -> Result<Vec<Match>, MatchError> {
+    check_kinds(query.kind(), train.kind())?;
+    if let Some(r) = params.ratio {
+        if !(r.is_finite() && r > 0.0) {
+            return Err(MatchError::InvalidParameter {
+                name: "ratio",
+                value: r,
+                expected: "a positive number (or None)",
+            });
+        }
+    }
+    if params.max_distance.is_nan() || params.max_distance < 0.0 {
+        return Err(MatchError::InvalidParameter {
+            name: "max_distance",
+            value: params.max_distance,
+            expected: ">= 0",
+        });
+    }
+    Ok(match (query, train) {
+        (DescriptorSet::Float { dim, data: q }, DescriptorSet::Float { data: t, .. }) => {
+            if *dim == 0 {
+                return Ok(Vec::new());
+            }
+            let q: Vec<&[f32]> = q.chunks_exact(*dim).collect();
+            let t: Vec<&[f32]> = t.chunks_exact(*dim).collect();
+            match_rows(&q, &t, params)
+        }
+        (DescriptorSet::Binary { data: q }, DescriptorSet::Binary { data: t }) => {
+            let q: Vec<&[u8; 32]> = q.iter().collect();
+            let t: Vec<&[u8; 32]> = t.iter().collect();
+            match_rows(&q, &t, params)
+        }
+        _ => Vec::new(), // unreachable after check_kinds
+    })
+}
+
+/// The one code path for both metrics.
+fn match_rows<R: DescriptorDistance + ?Sized>(
+    query: &[&R],
+    train: &[&R],
+    params: MatchParams,
+) -> Vec<Match> {
+    let mut column_best: Vec<Option<(usize, f32)>> = vec![None; train.len()];
+    let mut row_best = Vec::with_capacity(query.len());
+    for (i, q) in query.iter().enumerate() {
+        let mut best = BestTwo::default();
+        for (j, t) in train.iter().enumerate() {
+            let d = q.distance_to(t);
+            best.offer(j, d);
+            if params.mutual && column_best[j].is_none_or(|(_, cd)| d < cd) {
+                column_best[j] = Some((i, d));
+            }
+        }
+        row_best.push(best);
+    }
+    row_best
+        .iter()
+        .enumerate()
+        .filter_map(|(i, best)| {
+            let (j, d) = best.accept(params.max_distance, params.ratio)?;
+            if params.mutual && column_best[j].map(|(qi, _)| qi) != Some(i) {
+                return None;
+            }
+            Some(Match {
+                query: i,
+                train: j,
+                distance: d,
+            })
+        })
+        .collect()
+}
