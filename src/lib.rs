@@ -10,6 +10,7 @@ pub mod dataset;
 pub mod eval;
 pub mod features;
 pub mod ffi;
+pub mod map;
 pub mod matching;
 pub mod optim;
 pub mod settings;

@@ -1,0 +1,47 @@
+//! Errors from map operations given ids or indices that do not fit.
+
+use super::ids::{KeyFrameId, MapPointId};
+
+/// A map operation referred to something that is not there.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MapError {
+    /// No live keyframe has this id.
+    #[error("{0} is not in the map (never added, or culled)")]
+    UnknownKeyFrame(KeyFrameId),
+    /// No live map point has this id.
+    #[error("{0} is not in the map (never added, culled or fused)")]
+    UnknownMapPoint(MapPointId),
+    /// A keypoint index past the keyframe's keypoints.
+    #[error("{keyframe} has {keypoints} keypoints; index {index} is out of range")]
+    KeypointOutOfRange {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The index given.
+        index: usize,
+        /// How many keypoints it has.
+        keypoints: usize,
+    },
+    /// The keyframe's keypoint already observes another point.
+    #[error("{keyframe} keypoint {index} already observes {existing}")]
+    KeypointTaken {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The keypoint index.
+        index: usize,
+        /// The point it observes.
+        existing: MapPointId,
+    },
+    /// Keyframe data whose parts disagree in length.
+    #[error("keyframe data is inconsistent: {keypoints} keypoints, {descriptors} descriptors, {stereo} stereo entries")]
+    InconsistentKeyFrame {
+        /// Keypoints given.
+        keypoints: usize,
+        /// Descriptor rows given.
+        descriptors: usize,
+        /// Stereo entries given.
+        stereo: usize,
+    },
+}
+
+/// Result alias for map operations.
+pub type Result<T> = std::result::Result<T, MapError>;

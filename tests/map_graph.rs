@@ -1,0 +1,505 @@
+//! The map's bookkeeping on synthetic keyframes with known answers:
+//! covisibility weights against brute-force counts, the spanning tree through
+//! keyframe removal, two-sided consistency under random edit sequences,
+//! fusion, culling, representative descriptors and sharing across threads.
+
+use std::collections::BTreeSet;
+
+use nalgebra::{UnitQuaternion, Vector3};
+use proptest::prelude::*;
+use spslam::features::pyramid::ScaleTables;
+use spslam::features::{DescriptorRef, DescriptorSet, Keypoint};
+use spslam::map::{
+    most_representative, FrameMeasurements, KeyFrameId, Map, MapError, MapPointId, PointDescriptor,
+    StereoMeasurement,
+};
+use spslam::optim::{LieGroup, Se3};
+
+const DIM: usize = 4;
+
+fn keypoint(i: usize, octave: i32) -> Keypoint {
+    Keypoint {
+        x: (i % 40) as f32 * 10.0,
+        y: (i / 40) as f32 * 10.0,
+        size: 31.0,
+        angle: 0.0,
+        response: 1.0,
+        octave,
+    }
+}
+
+/// `n` keypoints whose descriptor row i is `[i, kf, 0, 0]` scaled down.
+fn measurements(n: usize, kf: usize, octave: i32, stereo: bool) -> FrameMeasurements {
+    let mut data = Vec::with_capacity(n * DIM);
+    for i in 0..n {
+        data.extend_from_slice(&[i as f32 * 0.01, kf as f32 * 0.001, 0.0, 0.0]);
+    }
+    FrameMeasurements {
+        keypoints: (0..n).map(|i| keypoint(i, octave)).collect(),
+        descriptors: DescriptorSet::Float { dim: DIM, data },
+        stereo: (0..n)
+            .map(|_| {
+                stereo.then_some(StereoMeasurement {
+                    right_u: 0.0,
+                    depth: 5.0,
+                })
+            })
+            .collect(),
+        scales: ScaleTables::new(1000, 1.2, 8),
+    }
+}
+
+fn pose(x: f64) -> Se3 {
+    Se3::new(UnitQuaternion::identity(), Vector3::new(-x, 0.0, 0.0))
+}
+
+fn descriptor() -> PointDescriptor {
+    PointDescriptor::Float(vec![0.0; DIM].into_boxed_slice())
+}
+
+/// Checks that every keyframe slot and every point observation agree.
+fn assert_consistent(map: &Map) {
+    for kf in map.keyframes() {
+        for (index, point) in kf.observed_points() {
+            let p = map.map_point(point).expect("slot refers to a live point");
+            assert_eq!(p.observations().get(&kf.id()), Some(&index));
+        }
+    }
+    for p in map.map_points() {
+        for (kf, index) in p.observations() {
+            let kf = map.keyframe(*kf).expect("observation by a live keyframe");
+            assert_eq!(kf.map_point(*index), Some(p.id()));
+        }
+    }
+}
+
+/// A chain of keyframes: keyframe k creates `points_per_kf / (overlap + 1)`
+/// points, each seen by keyframes k..=k+overlap at their next free keypoint.
+fn chain_map(keyframes: usize, points_per_kf: usize, overlap: usize) -> (Map, Vec<KeyFrameId>) {
+    let mut map = Map::new();
+    let ids: Vec<KeyFrameId> = (0..keyframes)
+        .map(|k| {
+            map.add_keyframe(
+                k,
+                k as f64,
+                pose(k as f64),
+                measurements(points_per_kf, k, 0, false),
+            )
+            .expect("add keyframe")
+        })
+        .collect();
+    let mut next_free = vec![0usize; keyframes];
+    for k in 0..keyframes {
+        for _ in 0..points_per_kf / (overlap + 1) {
+            let p = map
+                .add_map_point(Vector3::new(k as f64, 0.0, 5.0), descriptor(), ids[k])
+                .expect("add point");
+            for o in k..(k + overlap + 1).min(keyframes) {
+                map.add_observation(p, ids[o], next_free[o])
+                    .expect("observe");
+                next_free[o] += 1;
+            }
+        }
+        map.update_connections(ids[k]);
+    }
+    for id in &ids {
+        map.update_connections(*id);
+    }
+    (map, ids)
+}
+
+fn brute_force_shared(map: &Map, a: KeyFrameId, b: KeyFrameId) -> usize {
+    let pa: BTreeSet<MapPointId> = map
+        .keyframe(a)
+        .expect("a")
+        .observed_points()
+        .map(|(_, p)| p)
+        .collect();
+    let pb: BTreeSet<MapPointId> = map
+        .keyframe(b)
+        .expect("b")
+        .observed_points()
+        .map(|(_, p)| p)
+        .collect();
+    pa.intersection(&pb).count()
+}
+
+#[test]
+fn covisibility_weights_equal_brute_force_counts() {
+    let (map, ids) = chain_map(6, 60, 2);
+    assert_consistent(&map);
+    for &a in &ids {
+        for &b in &ids {
+            if a != b {
+                assert_eq!(
+                    map.covisibility_weight(a, b),
+                    brute_force_shared(&map, a, b),
+                    "{a} {b}"
+                );
+            }
+        }
+        let best = map.best_covisible(a, usize::MAX);
+        let weights: Vec<usize> = best
+            .iter()
+            .map(|b| map.covisibility_weight(a, *b))
+            .collect();
+        assert!(
+            weights.windows(2).all(|w| w[0] >= w[1]),
+            "ordered by weight: {weights:?}"
+        );
+        assert!(
+            weights.iter().all(|w| *w >= 15),
+            "only ≥ 15 shared points: {weights:?}"
+        );
+    }
+    // Keyframes two apart share the points seen across three consecutive ones.
+    assert!(map.best_covisible(ids[2], usize::MAX).contains(&ids[0]));
+    assert!(!map.best_covisible(ids[3], usize::MAX).contains(&ids[0]));
+}
+
+#[test]
+fn spanning_tree_survives_keyframe_removal() {
+    let (mut map, ids) = chain_map(8, 60, 2);
+    assert_eq!(map.parent(ids[0]), None, "the first keyframe is the root");
+    for k in 1..ids.len() {
+        assert!(map.parent(ids[k]).is_some(), "{} has a parent", ids[k]);
+    }
+    let pose_before = map.keyframe(ids[3]).expect("kf").pose_cw();
+    map.erase_keyframe(ids[3]).expect("erase");
+    assert!(map.keyframe(ids[3]).is_err());
+    assert_consistent(&map);
+    // Every live keyframe still reaches the root, without cycles.
+    for kf in map.keyframes() {
+        let mut current = kf.id();
+        let mut steps = 0;
+        while let Some(parent) = map.parent(current) {
+            assert!(map.keyframe(parent).is_ok(), "{parent} is live");
+            current = parent;
+            steps += 1;
+            assert!(steps <= ids.len(), "cycle from {}", kf.id());
+        }
+        assert_eq!(current, ids[0]);
+    }
+    // The culled keyframe's pose is still recoverable through its parent.
+    let recovered = map.pose_cw_of(ids[3]).expect("culled pose");
+    assert!((recovered.to_matrix() - pose_before.to_matrix()).amax() < 1e-12);
+    // The first keyframe is never erased.
+    map.erase_keyframe(ids[0]).expect("no-op");
+    assert!(map.keyframe(ids[0]).is_ok());
+}
+
+#[test]
+fn points_left_with_two_observations_are_erased_and_stereo_counts_twice() {
+    let mut map = Map::new();
+    let a = map
+        .add_keyframe(0, 0.0, pose(0.0), measurements(5, 0, 0, false))
+        .expect("a");
+    let b = map
+        .add_keyframe(1, 1.0, pose(1.0), measurements(5, 1, 0, false))
+        .expect("b");
+    let c = map
+        .add_keyframe(2, 2.0, pose(2.0), measurements(5, 2, 0, true))
+        .expect("c");
+    let p = map
+        .add_map_point(Vector3::new(0.0, 0.0, 5.0), descriptor(), a)
+        .expect("p");
+    map.add_observation(p, a, 0).expect("a");
+    map.add_observation(p, b, 1).expect("b");
+    map.add_observation(p, c, 2).expect("c");
+    assert_eq!(
+        map.map_point(p).expect("p").observation_count(),
+        4,
+        "stereo counts twice"
+    );
+    map.erase_observation(p, c).expect("erase c");
+    assert!(map.map_point(p).is_err(), "two observations left: erased");
+    assert_eq!(map.keyframe(a).expect("a").map_point(0), None);
+    assert_consistent(&map);
+}
+
+#[test]
+fn bad_ids_and_indices_are_typed_errors() {
+    let mut map = Map::new();
+    let a = map
+        .add_keyframe(0, 0.0, pose(0.0), measurements(3, 0, 0, false))
+        .expect("a");
+    let p = map
+        .add_map_point(Vector3::zeros(), descriptor(), a)
+        .expect("p");
+    let q = map
+        .add_map_point(Vector3::zeros(), descriptor(), a)
+        .expect("q");
+    assert_eq!(
+        map.add_observation(p, a, 3),
+        Err(MapError::KeypointOutOfRange {
+            keyframe: a,
+            index: 3,
+            keypoints: 3
+        })
+    );
+    assert_eq!(
+        map.add_observation(p, KeyFrameId(9), 0),
+        Err(MapError::UnknownKeyFrame(KeyFrameId(9)))
+    );
+    map.add_observation(p, a, 0).expect("first");
+    assert_eq!(
+        map.add_observation(q, a, 0),
+        Err(MapError::KeypointTaken {
+            keyframe: a,
+            index: 0,
+            existing: p
+        })
+    );
+    let mut bad = measurements(3, 0, 0, false);
+    bad.stereo.pop();
+    assert!(matches!(
+        map.add_keyframe(1, 1.0, pose(1.0), bad),
+        Err(MapError::InconsistentKeyFrame {
+            keypoints: 3,
+            stereo: 2,
+            ..
+        })
+    ));
+}
+
+#[test]
+fn fusion_merges_observations_and_redirects_the_old_id() {
+    let mut map = Map::new();
+    let kfs: Vec<KeyFrameId> = (0..4)
+        .map(|k| {
+            map.add_keyframe(k, k as f64, pose(k as f64), measurements(6, k, 0, false))
+                .expect("kf")
+        })
+        .collect();
+    let old = map
+        .add_map_point(Vector3::new(0.0, 0.0, 4.0), descriptor(), kfs[0])
+        .expect("old");
+    let new = map
+        .add_map_point(Vector3::new(0.0, 0.0, 4.0), descriptor(), kfs[1])
+        .expect("new");
+    map.add_observation(old, kfs[0], 0).expect("o0");
+    map.add_observation(old, kfs[1], 1).expect("o1");
+    map.add_observation(new, kfs[1], 2).expect("n1");
+    map.add_observation(new, kfs[2], 3).expect("n2");
+    map.add_observation(new, kfs[3], 4).expect("n3");
+    map.replace_map_point(old, new).expect("fuse");
+    let merged = map.map_point(new).expect("new");
+    let observers: Vec<KeyFrameId> = merged.observations().keys().copied().collect();
+    assert_eq!(
+        observers, kfs,
+        "kf1 keeps its own keypoint for the new point"
+    );
+    assert_eq!(map.keyframe(kfs[1]).expect("kf1").map_point(1), None);
+    assert_eq!(map.resolve_point(old), Some(new));
+    assert_eq!(merged.visible, 2);
+    assert_consistent(&map);
+}
+
+#[test]
+fn representative_descriptor_is_the_least_median_one() {
+    // On a line at 0, 1.5, 2, 2.5, 4: the point at 2 has median distance 0.5,
+    // the others 1 or more.
+    let rows: Vec<Vec<f32>> = [0.0, 1.5, 2.0, 2.5, 4.0]
+        .iter()
+        .map(|x| vec![*x, 0.0])
+        .collect();
+    let refs: Vec<DescriptorRef<'_>> = rows.iter().map(|r| DescriptorRef::Float(r)).collect();
+    assert_eq!(
+        most_representative(&refs),
+        Some(2),
+        "the middle of the cluster"
+    );
+    assert_eq!(most_representative(&[]), None);
+    // Bytes with 0, 3, 4, 5 and 8 bits set: on a line at 0, 3, 4, 5, 8 (×32 bits).
+    let bits = [[0x00u8; 32], [0x07; 32], [0x0F; 32], [0x1F; 32], [0xFF; 32]];
+    let refs: Vec<DescriptorRef<'_>> = bits.iter().map(DescriptorRef::Binary).collect();
+    assert_eq!(
+        most_representative(&refs),
+        Some(2),
+        "Hamming: the middle one"
+    );
+}
+
+#[test]
+fn normal_points_from_the_cameras_and_distances_follow_the_octave() {
+    let mut map = Map::new();
+    let a = map
+        .add_keyframe(0, 0.0, pose(-1.0), measurements(2, 0, 2, false))
+        .expect("a");
+    let b = map
+        .add_keyframe(1, 1.0, pose(1.0), measurements(2, 1, 2, false))
+        .expect("b");
+    let p = map
+        .add_map_point(Vector3::new(0.0, 0.0, 10.0), descriptor(), a)
+        .expect("p");
+    map.add_observation(p, a, 0).expect("a");
+    map.add_observation(p, b, 0).expect("b");
+    map.update_normal_and_depth(p);
+    let point = map.map_point(p).expect("p");
+    assert!(
+        (point.normal - Vector3::z()).norm() < 1e-12,
+        "symmetric views: normal along z"
+    );
+    let distance = 101f64.sqrt();
+    let scale2 = f64::from(1.2f32 * 1.2f32);
+    assert!((point.max_distance - distance * scale2).abs() < 1e-5);
+    assert!((point.min_distance - point.max_distance / f64::from(1.2f32.powi(7))).abs() < 1e-5);
+    assert_eq!(
+        point.predict_octave(distance, 1.2, 8),
+        2,
+        "seen from where it was made: its octave"
+    );
+}
+
+#[test]
+fn recent_points_culling_follows_orb_slam3() {
+    let mut map = Map::new();
+    let kfs: Vec<KeyFrameId> = (0..4)
+        .map(|k| {
+            map.add_keyframe(k, k as f64, pose(k as f64), measurements(4, k, 0, false))
+                .expect("kf")
+        })
+        .collect();
+    let weak = map
+        .add_map_point(Vector3::zeros(), descriptor(), kfs[0])
+        .expect("weak");
+    let lonely = map
+        .add_map_point(Vector3::zeros(), descriptor(), kfs[0])
+        .expect("lonely");
+    let good = map
+        .add_map_point(Vector3::zeros(), descriptor(), kfs[0])
+        .expect("good");
+    let young = map
+        .add_map_point(Vector3::zeros(), descriptor(), kfs[2])
+        .expect("young");
+    for (p, n) in [(weak, 3), (lonely, 2), (good, 4), (young, 1)] {
+        for (j, kf) in kfs.iter().take(n).enumerate() {
+            let index = [weak, lonely, good, young]
+                .iter()
+                .position(|x| *x == p)
+                .unwrap_or(0);
+            let _ = j;
+            map.add_observation(p, *kf, index).expect("observe");
+        }
+    }
+    map.map_point_mut(weak).expect("weak").visible = 10; // found 1 of 10
+    let mut recent = vec![weak, lonely, good, young];
+    let report = map.cull_recent_points(&mut recent, kfs[3], 2);
+    assert_eq!(report.low_found_ratio, 1);
+    assert_eq!(report.too_few_observations, 1);
+    assert_eq!(report.confirmed, 1);
+    assert_eq!(recent, vec![young]);
+    assert!(map.map_point(weak).is_err() && map.map_point(lonely).is_err());
+    assert!(map.map_point(good).is_ok());
+}
+
+#[test]
+fn a_keyframe_whose_points_others_see_is_redundant() {
+    // Five keyframes all seeing the same 30 points: every one but the first is redundant.
+    let mut map = Map::new();
+    let kfs: Vec<KeyFrameId> = (0..5)
+        .map(|k| {
+            map.add_keyframe(k, k as f64, pose(k as f64), measurements(30, k, 0, true))
+                .expect("kf")
+        })
+        .collect();
+    for j in 0..30 {
+        let p = map
+            .add_map_point(Vector3::new(0.0, 0.0, 5.0), descriptor(), kfs[0])
+            .expect("p");
+        for kf in &kfs {
+            map.add_observation(p, *kf, j).expect("observe");
+        }
+    }
+    assert_eq!(map.redundant_keyframes(&kfs, Some(20.0)), kfs[1..].to_vec());
+    assert!(
+        map.redundant_keyframes(&kfs, Some(1.0)).is_empty(),
+        "no close points: nothing counted"
+    );
+}
+
+#[test]
+fn tracking_and_mapping_threads_share_the_map() {
+    let shared = Map::new().into_shared();
+    let writer = {
+        let shared = shared.clone();
+        std::thread::spawn(move || {
+            for k in 0..50 {
+                let mut map = shared.write().expect("lock");
+                let kf = map
+                    .add_keyframe(k, k as f64, pose(k as f64), measurements(20, k, 0, false))
+                    .expect("kf");
+                for j in 0..20 {
+                    let p = map
+                        .add_map_point(Vector3::zeros(), descriptor(), kf)
+                        .expect("p");
+                    map.add_observation(p, kf, j).expect("obs");
+                }
+            }
+        })
+    };
+    let mut max_seen = 0;
+    while max_seen < 50 {
+        let map = shared.read().expect("lock");
+        assert_consistent(&map);
+        assert_eq!(map.map_point_count(), 20 * map.keyframe_count());
+        max_seen = map.keyframe_count();
+    }
+    writer.join().expect("writer thread");
+}
+
+/// Random edit sequences keep both sides of every association consistent.
+#[derive(Debug, Clone)]
+enum Edit {
+    Observe {
+        point: usize,
+        kf: usize,
+        index: usize,
+    },
+    Unobserve {
+        point: usize,
+        kf: usize,
+    },
+    Fuse {
+        old: usize,
+        new: usize,
+    },
+    EraseKeyFrame {
+        kf: usize,
+    },
+}
+
+fn edit() -> impl Strategy<Value = Edit> {
+    prop_oneof![
+        4 => (0..12usize, 0..5usize, 0..8usize).prop_map(|(point, kf, index)| Edit::Observe { point, kf, index }),
+        2 => (0..12usize, 0..5usize).prop_map(|(point, kf)| Edit::Unobserve { point, kf }),
+        1 => (0..12usize, 0..12usize).prop_map(|(old, new)| Edit::Fuse { old, new }),
+        1 => (0..5usize).prop_map(|kf| Edit::EraseKeyFrame { kf }),
+    ]
+}
+
+proptest! {
+    #[test]
+    fn random_edits_keep_the_map_consistent(edits in proptest::collection::vec(edit(), 1..60)) {
+        let mut map = Map::new();
+        let kfs: Vec<KeyFrameId> = (0..5)
+            .map(|k| map.add_keyframe(k, k as f64, pose(k as f64), measurements(8, k, 0, k % 2 == 0)).expect("kf"))
+            .collect();
+        let points: Vec<MapPointId> = (0..12)
+            .map(|_| map.add_map_point(Vector3::zeros(), descriptor(), kfs[0]).expect("p"))
+            .collect();
+        for e in edits {
+            // Errors (taken slots, dead ids) are expected; panics and inconsistency are not.
+            let _ = match e {
+                Edit::Observe { point, kf, index } => map.add_observation(points[point], kfs[kf], index),
+                Edit::Unobserve { point, kf } => map.erase_observation(points[point], kfs[kf]),
+                Edit::Fuse { old, new } => map.replace_map_point(points[old], points[new]),
+                Edit::EraseKeyFrame { kf } => map.erase_keyframe(kfs[kf]),
+            };
+            for kf in map.keyframes().map(|k| k.id()).collect::<Vec<_>>() {
+                map.update_connections(kf);
+            }
+            assert_consistent(&map);
+        }
+    }
+}
