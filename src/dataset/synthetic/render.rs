@@ -112,59 +112,149 @@ pub fn render_view(
     }
 }
 
+/// The nearest plane along a ray: index into the visible planes, ray
+/// parameter, surface coordinates and `normal · ray`.
+#[derive(Clone, Copy)]
+struct RayHit {
+    visible: usize,
+    t: f64,
+    u: f64,
+    v: f64,
+    denom: f64,
+}
+
+/// Marks the sky in the corner-id grid.
+const SKY: u32 = u32::MAX;
+/// Sub-pixel offsets of the 4×4 samples taken on silhouette pixels.
+const SUBSAMPLES: [f64; 4] = [-0.375, -0.125, 0.125, 0.375];
+
 impl ViewSetup<'_> {
     /// Renders the rows starting at `first_row` into the given slices.
+    ///
+    /// A pixel is shaded at its centre, box-filtered over its footprint on
+    /// the surface. Where a silhouette crosses it (its four corners and its
+    /// centre do not all see the same plane) it is the mean of 4×4 samples,
+    /// so plane edges are antialiased too. Depth is always the centre's.
     fn render_rows(&self, first_row: usize, gray: &mut [f32], mut depth: Option<&mut [f32]>) {
-        for (row_offset, gray_row) in gray.chunks_mut(self.width).enumerate() {
+        let width = self.width;
+        let rows = gray.len() / width;
+        let corners = self.corner_ids(first_row, rows);
+        for (row_offset, gray_row) in gray.chunks_mut(width).enumerate() {
             let y = (first_row + row_offset) as f64;
-            let row_ray = self.corner_ray + self.step_y * y;
             for (x, pixel) in gray_row.iter_mut().enumerate() {
-                let ray = row_ray + self.step_x * x as f64;
-                let (value, z) = self.shade(&ray);
+                let ray = self.ray(x as f64, y);
+                let top = &corners[row_offset * (width + 1) + x..][..2];
+                let bottom = &corners[(row_offset + 1) * (width + 1) + x..][..2];
+                let id = top[0];
+                let uniform = top[1] == id && bottom[0] == id && bottom[1] == id;
+                // Planes are far wider than a pixel: when the four corners
+                // see one plane, so does the centre (checked, not assumed).
+                let centre = if !uniform {
+                    None
+                } else if id == SKY {
+                    Some(None)
+                } else {
+                    self.intersect_plane(id as usize, &ray).map(Some)
+                };
+                let (value, hit) = match centre {
+                    Some(hit) => (self.shade(&ray, hit.as_ref(), 1.0), hit),
+                    None => (self.supersample(x as f64, y), self.intersect(&ray)),
+                };
                 *pixel = value as f32;
                 if let Some(depth) = depth.as_deref_mut() {
-                    depth[row_offset * self.width + x] = z as f32;
+                    depth[row_offset * width + x] = hit.map_or(0.0, |h| h.t) as f32;
                 }
             }
         }
     }
 
-    /// Gray level and depth (0 for the sky) along one pixel ray.
-    fn shade(&self, ray: &Vector3<f64>) -> (f64, f64) {
-        let mut best: Option<(&Visible, f64, f64, f64, f64)> = None;
-        let mut best_t = f64::INFINITY;
-        for visible in &self.visible {
-            let denom = visible.normal.dot(ray);
-            if denom >= 0.0 {
-                continue;
-            }
-            let t = visible.offset / denom;
-            if t <= 0.0 || t >= best_t {
-                continue;
-            }
-            let rel = visible.eye_from_origin + ray * t;
-            let plane = visible.plane;
-            let u = rel.dot(&plane.u_axis);
-            let v = rel.dot(&plane.v_axis);
-            if plane.contains(u, v) {
-                best_t = t;
-                best = Some((visible, t, u, v, denom));
+    /// The world ray (camera z = 1) through image point `(x, y)`.
+    fn ray(&self, x: f64, y: f64) -> Vector3<f64> {
+        self.corner_ray + self.step_x * x + self.step_y * y
+    }
+
+    /// Which plane (or [`SKY`]) each pixel corner of rows
+    /// `first_row..first_row + rows` sees: `(rows + 1) × (width + 1)` ids.
+    fn corner_ids(&self, first_row: usize, rows: usize) -> Vec<u32> {
+        let mut ids = Vec::with_capacity((rows + 1) * (self.width + 1));
+        for row in 0..=rows {
+            let y = (first_row + row) as f64 - 0.5;
+            for column in 0..=self.width {
+                let ray = self.ray(column as f64 - 0.5, y);
+                ids.push(self.intersect(&ray).map_or(SKY, |h| h.visible as u32));
             }
         }
-        let Some((visible, t, u, v, denom)) = best else {
-            return (self.world.sky(ray), 0.0);
+        ids
+    }
+
+    /// The mean of 4×4 samples spread over the pixel.
+    fn supersample(&self, x: f64, y: f64) -> f64 {
+        let mut sum = 0.0;
+        for dy in SUBSAMPLES {
+            for dx in SUBSAMPLES {
+                let ray = self.ray(x + dx, y + dy);
+                let hit = self.intersect(&ray);
+                sum += self.shade(&ray, hit.as_ref(), 0.25);
+            }
+        }
+        sum / 16.0
+    }
+
+    /// The nearest front-side plane along `ray`.
+    fn intersect(&self, ray: &Vector3<f64>) -> Option<RayHit> {
+        let mut best: Option<RayHit> = None;
+        for index in 0..self.visible.len() {
+            if let Some(hit) = self.intersect_plane(index, ray) {
+                if best.is_none_or(|b| hit.t < b.t) {
+                    best = Some(hit);
+                }
+            }
+        }
+        best
+    }
+
+    /// Where `ray` meets visible plane `index` from the front, if it does.
+    fn intersect_plane(&self, index: usize, ray: &Vector3<f64>) -> Option<RayHit> {
+        let visible = &self.visible[index];
+        let denom = visible.normal.dot(ray);
+        if denom >= 0.0 {
+            return None;
+        }
+        let t = visible.offset / denom;
+        if t <= 0.0 {
+            return None;
+        }
+        let rel = visible.eye_from_origin + ray * t;
+        let plane = visible.plane;
+        let u = rel.dot(&plane.u_axis);
+        let v = rel.dot(&plane.v_axis);
+        plane.contains(u, v).then_some(RayHit {
+            visible: index,
+            t,
+            u,
+            v,
+            denom,
+        })
+    }
+
+    /// The gray level seen along `ray`, box-filtered over a footprint of
+    /// `scale` pixels.
+    fn shade(&self, ray: &Vector3<f64>, hit: Option<&RayHit>, scale: f64) -> f64 {
+        let Some(hit) = hit else {
+            return self.world.sky(ray);
         };
         // Ray differentials: how far the hit moves on the plane per pixel.
+        let visible = &self.visible[hit.visible];
         let plane = visible.plane;
         let moved = |step: &Vector3<f64>| -> Vector3<f64> {
-            (step - ray * (visible.normal.dot(step) / denom)) * t
+            (step - ray * (visible.normal.dot(step) / hit.denom)) * (hit.t * scale)
         };
         let (along_x, along_y) = (moved(&self.step_x), moved(&self.step_y));
         let footprint = Footprint {
             du: along_x.dot(&plane.u_axis).abs() + along_y.dot(&plane.u_axis).abs(),
             dv: along_x.dot(&plane.v_axis).abs() + along_y.dot(&plane.v_axis).abs(),
         };
-        (plane.texture.sample(u, v, footprint), t)
+        plane.texture.sample(hit.u, hit.v, footprint)
     }
 }
 

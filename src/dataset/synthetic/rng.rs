@@ -9,11 +9,15 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Hashes a seed with two signed cell coordinates and a layer index.
+/// Hashes a seed with two signed cell coordinates and a layer index
+/// (one multiply-xor per input, then one [`mix64`]).
 pub fn hash_cell(seed: u64, layer: u64, ix: i64, iy: i64) -> u64 {
-    let a = mix64(seed ^ layer.wrapping_mul(0x9e37_79b9_7f4a_7c15));
-    let b = mix64(a ^ (ix as u64).wrapping_mul(0xd6e8_feb8_6659_fd93));
-    mix64(b ^ (iy as u64).wrapping_mul(0xa076_1d64_78bd_642f))
+    let key = seed.wrapping_add(layer.wrapping_mul(0x9e37_79b9_7f4a_7c15))
+        ^ (ix as u64).wrapping_mul(0xd6e8_feb8_6659_fd93)
+        ^ (iy as u64)
+            .wrapping_mul(0xa076_1d64_78bd_642f)
+            .rotate_left(29);
+    mix64(key)
 }
 
 /// The top 53 bits of a hash as a uniform number in `[0, 1)`.

@@ -2,8 +2,8 @@
 //! box-filtered over the pixel's footprint so that the same point looks the
 //! same from every view and distant detail blurs instead of sparkling.
 
-use super::noise::{fade, fractal_noise};
-use super::rng::{hash_cell, unit_from_bits, SplitMix64};
+use super::noise::{fade, floor, fractal_noise};
+use super::rng::{hash_cell, unit_from_bits};
 
 /// The extent of one pixel on the surface, in metres along `u` and `v`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -135,18 +135,32 @@ impl ProceduralTexture {
             du: footprint.du.max(1e-6),
             dv: footprint.dv.max(1e-6),
         };
+        let widest = f.max();
+        let inverse = Footprint {
+            du: 1.0 / f.du,
+            dv: 1.0 / f.dv,
+        };
         let mut gray = self.base_gray
-            + self.shading * fractal_noise(self.seed, u, v, self.shading_wavelength, f.max());
+            + self.shading * fractal_noise(self.seed, u, v, self.shading_wavelength, widest);
         for (index, layer) in self.layers.iter().enumerate() {
-            let visibility = fade(f.max() / layer.cell_u.min(layer.cell_v), 0.15, 0.5);
-            let (mean_gray, mean_coverage) = layer.mean();
+            let cell = layer.cell_u.min(layer.cell_v);
+            // Full detail while a cell spans ≥ 1/0.15 pixels, none below 2.
+            let visibility = if widest <= 0.15 * cell {
+                1.0
+            } else {
+                fade(widest / cell, 0.15, 0.5)
+            };
             if visibility < 1.0 {
                 // The layer's average, as a mip level would hold it.
+                let (mean_gray, mean_coverage) = layer.mean();
                 gray += (1.0 - visibility) * mean_coverage * (mean_gray - gray);
             }
             if visibility > 0.0 {
-                let (shape_gray, coverage) = self.shape_at(index as u64, layer, u, v, f);
-                gray += visibility * coverage * (shape_gray - gray);
+                if let Some((shape_gray, coverage)) =
+                    self.shape_at(index as u64, layer, u, v, f, inverse)
+                {
+                    gray += visibility * coverage * (shape_gray - gray);
+                }
             }
         }
         gray
@@ -157,26 +171,39 @@ impl ProceduralTexture {
         if self.flat_zone_fraction <= 0.0 {
             return false;
         }
-        let zx = (u / self.flat_zone_size).floor() as i64;
-        let zy = (v / self.flat_zone_size).floor() as i64;
+        let inverse = 1.0 / self.flat_zone_size;
+        let zx = floor(u * inverse) as i64;
+        let zy = floor(v * inverse) as i64;
         unit_from_bits(hash_cell(self.seed, 1_000, zx, zy)) < self.flat_zone_fraction
     }
 
-    /// The gray level and coverage of the shape of the cell holding `(u, v)`.
-    fn shape_at(&self, index: u64, layer: &ShapeLayer, u: f64, v: f64, f: Footprint) -> (f64, f64) {
-        let cx = (u / layer.cell_u).floor();
-        let cy = (v / layer.cell_v).floor();
-        let mut rng = SplitMix64::new(hash_cell(self.seed, index, cx as i64, cy as i64));
-        if rng.next_unit() >= layer.occupancy {
-            return (0.0, 0.0);
+    /// The gray level and coverage of the shape of the cell holding `(u, v)`
+    /// (`None` for an empty cell); `inverse` holds 1/`f`'s widths.
+    fn shape_at(
+        &self,
+        index: u64,
+        layer: &ShapeLayer,
+        u: f64,
+        v: f64,
+        f: Footprint,
+        inverse: Footprint,
+    ) -> Option<(f64, f64)> {
+        let cx = floor(u / layer.cell_u);
+        let cy = floor(v / layer.cell_v);
+        // Six 10-bit uniforms from one hash: occupancy, size, aspect,
+        // centre u, centre v, gray.
+        let bits = hash_cell(self.seed, index, cx as i64, cy as i64);
+        let uniform = |k: u32| ((bits >> (10 * k)) & 1023) as f64 / 1024.0 + 1.0 / 2048.0;
+        let within = |k: u32, low: f64, high: f64| low + (high - low) * uniform(k);
+        if uniform(0) >= layer.occupancy {
+            return None;
         }
         let (su, sv) = if layer.regular {
             (layer.size_max, layer.size_max)
         } else {
-            let s = rng.uniform(layer.size_min, layer.size_max);
-            let aspect = rng.uniform(0.6, 1.0 / 0.6);
-            let su = (s * aspect.sqrt()).min(0.9);
-            (su, (s / aspect.sqrt()).min(0.9))
+            let s = within(1, layer.size_min, layer.size_max);
+            let aspect = within(2, 0.6, 1.0 / 0.6).sqrt();
+            ((s * aspect).min(0.9), (s / aspect).min(0.9))
         };
         let (su, sv) = if layer.kind == ShapeKind::Disc {
             (su.min(sv), su.min(sv))
@@ -189,43 +216,34 @@ impl ProceduralTexture {
             let margin_u = 0.05 + 0.5 * su;
             let margin_v = 0.05 + 0.5 * sv;
             (
-                rng.uniform(margin_u, 1.0 - margin_u),
-                rng.uniform(margin_v, 1.0 - margin_v),
+                within(3, margin_u, 1.0 - margin_u),
+                within(4, margin_v, 1.0 - margin_v),
             )
         };
         let centre_u = (cx + ou) * layer.cell_u;
         let centre_v = (cy + ov) * layer.cell_v;
         if layer.detail && self.in_flat_zone(centre_u, centre_v) {
-            return (0.0, 0.0);
+            return None;
         }
-        let gray = rng.uniform(layer.gray_min, layer.gray_max);
+        let gray = within(5, layer.gray_min, layer.gray_max);
         let half_u = 0.5 * su * layer.cell_u;
         let half_v = 0.5 * sv * layer.cell_v;
         let (x, y) = (u - centre_u, v - centre_v);
+        let along_u = |low, high| box_overlap(x, low, high, f.du, inverse.du);
+        let along_v = |low, high| box_overlap(y, low, high, f.dv, inverse.dv);
         match layer.kind {
-            ShapeKind::Rectangle => (
-                gray,
-                box_overlap(x, -half_u, half_u, f.du) * box_overlap(y, -half_v, half_v, f.dv),
-            ),
-            ShapeKind::Disc => (gray, disc_coverage(x, y, half_u, 0.5 * (f.du + f.dv))),
+            ShapeKind::Rectangle => {
+                Some((gray, along_u(-half_u, half_u) * along_v(-half_v, half_v)))
+            }
+            ShapeKind::Disc => Some((gray, disc_coverage(x, y, half_u, 0.5 * (f.du + f.dv)))),
             ShapeKind::Checker => {
                 let other = 255.0 - gray;
-                let (u_neg, u_pos) = (
-                    box_overlap(x, -half_u, 0.0, f.du),
-                    box_overlap(x, 0.0, half_u, f.du),
-                );
-                let (v_neg, v_pos) = (
-                    box_overlap(y, -half_v, 0.0, f.dv),
-                    box_overlap(y, 0.0, half_v, f.dv),
-                );
+                let (u_neg, u_pos) = (along_u(-half_u, 0.0), along_u(0.0, half_u));
+                let (v_neg, v_pos) = (along_v(-half_v, 0.0), along_v(0.0, half_v));
                 let first = u_pos * v_pos + u_neg * v_neg;
                 let second = u_pos * v_neg + u_neg * v_pos;
                 let coverage = first + second;
-                if coverage <= 0.0 {
-                    (0.0, 0.0)
-                } else {
-                    ((first * gray + second * other) / coverage, coverage)
-                }
+                (coverage > 0.0).then(|| ((first * gray + second * other) / coverage, coverage))
             }
         }
     }
@@ -253,10 +271,11 @@ impl ShapeLayer {
     }
 }
 
-/// The share of the window `[x − w/2, x + w/2]` inside `[low, high]`.
-fn box_overlap(x: f64, low: f64, high: f64, width: f64) -> f64 {
+/// The share of the window `[x − w/2, x + w/2]` inside `[low, high]`
+/// (`inverse_width` = 1/w).
+fn box_overlap(x: f64, low: f64, high: f64, width: f64, inverse_width: f64) -> f64 {
     let overlap = (x + 0.5 * width).min(high) - (x - 0.5 * width).max(low);
-    (overlap / width).max(0.0)
+    (overlap * inverse_width).max(0.0)
 }
 
 /// The share of a pixel of `width` metres at offset `(x, y)` from a disc's
@@ -307,11 +326,11 @@ mod tests {
 
     #[test]
     fn box_overlap_is_the_exact_share() {
-        assert_eq!(box_overlap(0.0, -1.0, 1.0, 0.5), 1.0);
-        assert_eq!(box_overlap(1.0, -1.0, 1.0, 0.5), 0.5);
-        assert_eq!(box_overlap(3.0, -1.0, 1.0, 0.5), 0.0);
+        assert_eq!(box_overlap(0.0, -1.0, 1.0, 0.5, 2.0), 1.0);
+        assert_eq!(box_overlap(1.0, -1.0, 1.0, 0.5, 2.0), 0.5);
+        assert_eq!(box_overlap(3.0, -1.0, 1.0, 0.5, 2.0), 0.0);
         // A window wider than the interval: the interval's share of it.
-        assert!((box_overlap(0.0, -0.1, 0.1, 1.0) - 0.2).abs() < 1e-12);
+        assert!((box_overlap(0.0, -0.1, 0.1, 1.0, 1.0) - 0.2).abs() < 1e-12);
     }
 
     #[test]

@@ -47,7 +47,7 @@ pub struct Skyline {
 impl Skyline {
     /// The height of the building at `u` (0 in a gap).
     pub fn height_at(&self, u: f64) -> f64 {
-        let index = (u / self.segment).floor() as i64;
+        let index = super::noise::floor(u / self.segment) as i64;
         let h = hash_cell(self.seed, 2_000, index, 0);
         if index % 2 != 0 && unit_from_bits(h) < self.gap_probability {
             return 0.0;
