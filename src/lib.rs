@@ -11,6 +11,8 @@ pub mod eval;
 pub mod features;
 pub mod ffi;
 pub mod map;
+pub mod mapping;
 pub mod matching;
 pub mod optim;
 pub mod settings;
+pub mod tracking;

@@ -1,0 +1,179 @@
+//! Fusion of duplicated points: a keyframe's points projected into its
+//! neighbours and theirs into it (ORB-SLAM3's `SearchInNeighbors` / `Fuse`).
+
+use std::collections::BTreeSet;
+
+use crate::map::{KeyFrameId, Map, MapPointId};
+use crate::matching::{DistanceThresholds, KeypointGrid};
+use crate::optim::reprojection::{CHI2_MONO_95, CHI2_STEREO_95};
+use crate::optim::LieGroup;
+use crate::tracking::{MapContext, SlamError, StereoRig};
+
+/// Search window at octave 0, pixels (ORB-SLAM3's `th = 3`).
+const FUSE_RADIUS: f32 = 3.0;
+
+/// Finds the keypoint of `target` that `point` projects onto, if any.
+fn fuse_candidate(
+    map: &Map,
+    target: KeyFrameId,
+    grid: &KeypointGrid,
+    point: MapPointId,
+    rig: &StereoRig,
+) -> Option<usize> {
+    let kf = map.keyframe(target).ok()?;
+    let p = map.map_point(point).ok()?;
+    let pc = kf.pose_cw().transform_point(&p.position);
+    if pc.z <= 0.0 {
+        return None;
+    }
+    let predicted = rig.camera.project_stereo(&pc);
+    if !rig.contains(predicted.x, predicted.y) {
+        return None;
+    }
+    let ray = p.position - kf.camera_center();
+    let distance = ray.norm();
+    if !p.in_distance_range(distance)
+        || (p.normal.norm() > 0.0 && ray.dot(&p.normal) < 0.5 * distance)
+    {
+        return None;
+    }
+    let scales = &kf.measurements.scales;
+    let scale_factor = f64::from(scales.scale_factors.get(1).copied().unwrap_or(1.2));
+    let octave = p.predict_octave(distance, scale_factor, scales.n_levels());
+    let radius = FUSE_RADIUS * scales.scale_factors.get(octave).copied().unwrap_or(1.0);
+    let threshold = DistanceThresholds::for_kind(kf.measurements.descriptors.kind()).low;
+    let mut best: Option<(usize, f32)> = None;
+    let octave = octave as i32;
+    for i in grid.features_in_area(
+        predicted.x as f32,
+        predicted.y as f32,
+        radius,
+        Some((octave - 1, octave)),
+    ) {
+        let kp = &kf.measurements.keypoints[i];
+        let sigma2 = f64::from(
+            scales
+                .level_sigma2
+                .get(kp.octave.max(0) as usize)
+                .copied()
+                .unwrap_or(1.0),
+        );
+        let mut err2 =
+            (predicted.x - f64::from(kp.x)).powi(2) + (predicted.y - f64::from(kp.y)).powi(2);
+        let ok = match kf.measurements.stereo[i] {
+            Some(s) if s.depth > 0.0 => {
+                err2 += (predicted.z - f64::from(s.right_u)).powi(2);
+                err2 <= CHI2_STEREO_95 * sigma2
+            }
+            _ => err2 <= CHI2_MONO_95 * sigma2,
+        };
+        if !ok {
+            continue;
+        }
+        let Some(d) = kf
+            .measurements
+            .descriptors
+            .row(i)
+            .and_then(|r| p.descriptor.distance(&r))
+        else {
+            continue;
+        };
+        if d <= threshold && best.is_none_or(|(_, bd)| d < bd) {
+            best = Some((i, d));
+        }
+    }
+    best.map(|(i, _)| i)
+}
+
+/// Projects `points` into `target`: a point landing on a keypoint with a
+/// point is fused with it (the one with more observations survives),
+/// otherwise it gains the observation. Returns how many were fused or added.
+fn fuse_into(
+    map: &mut Map,
+    target: KeyFrameId,
+    points: &[MapPointId],
+    rig: &StereoRig,
+) -> Result<usize, SlamError> {
+    let Ok(kf) = map.keyframe(target) else {
+        return Ok(0);
+    };
+    let grid = KeypointGrid::new(&kf.measurements.keypoints, rig.width, rig.height);
+    let mut changed = 0;
+    for &point in points {
+        let Some(point) = map.resolve_point(point) else {
+            continue;
+        };
+        let already = map
+            .map_point(point)
+            .is_ok_and(|p| p.observations().contains_key(&target));
+        if already {
+            continue;
+        }
+        let Some(index) = fuse_candidate(map, target, &grid, point, rig) else {
+            continue;
+        };
+        let existing = map.keyframe(target).ok().and_then(|k| k.map_point(index));
+        match existing {
+            Some(other) if other != point => {
+                let count = |id| map.map_point(id).map_or(0, |p| p.observation_count());
+                if count(other) > count(point) {
+                    map.replace_map_point(point, other).in_stage("fusion")?;
+                } else {
+                    map.replace_map_point(other, point).in_stage("fusion")?;
+                }
+                changed += 1;
+            }
+            Some(_) => {}
+            None => {
+                map.add_observation(point, target, index)
+                    .in_stage("fusion")?;
+                changed += 1;
+            }
+        }
+    }
+    Ok(changed)
+}
+
+/// Fuses `keyframe`'s points with those of its neighbours (10 best
+/// covisible and their 5 best), both ways, then refreshes descriptors,
+/// normals and connections. Returns the fusions and additions made.
+pub fn fuse_with_neighbours(
+    map: &mut Map,
+    keyframe: KeyFrameId,
+    rig: &StereoRig,
+) -> Result<usize, SlamError> {
+    let mut targets: BTreeSet<KeyFrameId> = BTreeSet::new();
+    for n in map.best_covisible(keyframe, 10) {
+        targets.insert(n);
+        for m in map.best_covisible(n, 5) {
+            targets.insert(m);
+        }
+    }
+    targets.remove(&keyframe);
+    let own: Vec<MapPointId> = map
+        .keyframe(keyframe)
+        .map(|k| k.observed_points().map(|(_, p)| p).collect())
+        .unwrap_or_default();
+    let mut changed = 0;
+    for target in &targets {
+        changed += fuse_into(map, *target, &own, rig)?;
+    }
+    let mut candidates: BTreeSet<MapPointId> = BTreeSet::new();
+    for target in &targets {
+        if let Ok(kf) = map.keyframe(*target) {
+            candidates.extend(kf.observed_points().map(|(_, p)| p));
+        }
+    }
+    let candidates: Vec<MapPointId> = candidates.into_iter().collect();
+    changed += fuse_into(map, keyframe, &candidates, rig)?;
+    let own: Vec<MapPointId> = map
+        .keyframe(keyframe)
+        .map(|k| k.observed_points().map(|(_, p)| p).collect())
+        .unwrap_or_default();
+    for p in own {
+        map.update_descriptor(p);
+        map.update_normal_and_depth(p);
+    }
+    map.update_connections(keyframe);
+    Ok(changed)
+}

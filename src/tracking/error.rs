@@ -1,0 +1,115 @@
+//! Errors of the SLAM pipeline (tracking, local mapping, the driver).
+
+use crate::features::FeatureError;
+use crate::map::MapError;
+use crate::matching::MatchError;
+use crate::optim::OptimError;
+
+/// Something the SLAM pipeline could not do.
+#[derive(Debug, thiserror::Error)]
+pub enum SlamError {
+    /// Feature extraction failed on a frame.
+    #[error("feature extraction failed on frame {frame}: {source}")]
+    Features {
+        /// The frame's index in the sequence.
+        frame: usize,
+        /// What the extractor said.
+        #[source]
+        source: FeatureError,
+    },
+    /// A matcher rejected its input.
+    #[error("matching failed ({stage}): {source}")]
+    Matching {
+        /// Which step matched.
+        stage: &'static str,
+        /// What the matcher said.
+        #[source]
+        source: MatchError,
+    },
+    /// A map operation referred to something that is not there.
+    #[error("map operation failed ({stage}): {source}")]
+    Map {
+        /// Which step changed the map.
+        stage: &'static str,
+        /// What the map said.
+        #[source]
+        source: MapError,
+    },
+    /// An optimisation rejected its problem.
+    #[error("optimisation failed ({stage}): {source}")]
+    Optimisation {
+        /// Which optimisation.
+        stage: &'static str,
+        /// What the optimiser said.
+        #[source]
+        source: OptimError,
+    },
+    /// OpenCV failed (relocalisation's PnP).
+    #[error("OpenCV failed in {stage}: {source}")]
+    OpenCv {
+        /// Which step called OpenCV.
+        stage: &'static str,
+        /// OpenCV's error.
+        #[source]
+        source: opencv::Error,
+    },
+    /// The camera settings cannot drive a stereo SLAM.
+    #[error("invalid camera for stereo SLAM: {reason}")]
+    InvalidCamera {
+        /// What is wrong.
+        reason: String,
+    },
+    /// The left and right images of a frame differ in size.
+    #[error("frame {frame}: left image is {left_width}x{left_height}, right is {right_width}x{right_height}")]
+    ImageSizeMismatch {
+        /// The frame's index.
+        frame: usize,
+        /// Left width.
+        left_width: usize,
+        /// Left height.
+        left_height: usize,
+        /// Right width.
+        right_width: usize,
+        /// Right height.
+        right_height: usize,
+    },
+    /// The shared map's lock was poisoned by a panicking thread.
+    #[error("the shared map's lock is poisoned (a thread panicked while holding it)")]
+    PoisonedMap,
+    /// The local-mapping thread stopped unexpectedly.
+    #[error("the local-mapping thread stopped: {reason}")]
+    MappingThread {
+        /// What happened.
+        reason: String,
+    },
+}
+
+/// Wraps map errors with the step that caused them.
+pub(crate) trait MapContext<T> {
+    /// Names the step.
+    fn in_stage(self, stage: &'static str) -> Result<T, SlamError>;
+}
+
+impl<T> MapContext<T> for Result<T, MapError> {
+    fn in_stage(self, stage: &'static str) -> Result<T, SlamError> {
+        self.map_err(|source| SlamError::Map { stage, source })
+    }
+}
+
+impl<T> MapContext<T> for Result<T, MatchError> {
+    fn in_stage(self, stage: &'static str) -> Result<T, SlamError> {
+        self.map_err(|source| SlamError::Matching { stage, source })
+    }
+}
+
+impl<T> MapContext<T> for Result<T, OptimError> {
+    fn in_stage(self, stage: &'static str) -> Result<T, SlamError> {
+        self.map_err(|source| SlamError::Optimisation { stage, source })
+    }
+}
+
+impl<T> MapContext<T> for Result<T, opencv::Error> {
+    fn in_stage(self, stage: &'static str) -> Result<T, SlamError> {
+        self.map_err(|source| SlamError::OpenCv { stage, source })
+    }
+}

@@ -1,0 +1,112 @@
+//! A tracked frame: features from both images, stereo depths, the grid, the
+//! map points its keypoints are matched to, and its pose.
+
+use crate::features::pyramid::ScaleTables;
+use crate::features::FrameFeatures;
+use crate::map::{FrameMeasurements, KeyFrameId, MapPointId, StereoMeasurement};
+use crate::matching::KeypointGrid;
+use crate::optim::{LieGroup, Se3};
+
+use super::rig::StereoRig;
+
+/// One stereo frame being tracked.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Index in the input sequence.
+    pub index: usize,
+    /// Timestamp, seconds.
+    pub timestamp: f64,
+    /// Left keypoints and descriptors.
+    pub features: FrameFeatures,
+    /// Per left keypoint: its stereo match, if any (after the `max_depth` filter).
+    pub stereo: Vec<Option<StereoMeasurement>>,
+    /// The extractor's scale tables.
+    pub scales: ScaleTables,
+    /// Left keypoints bucketed for area queries.
+    pub grid: KeypointGrid,
+    /// Per keypoint: the map point it is matched to.
+    pub map_points: Vec<Option<MapPointId>>,
+    /// The pose `T_cw` (a prediction until tracking succeeds).
+    pub pose_cw: Se3,
+    /// The keyframe this frame's pose is stored relative to.
+    pub reference_keyframe: Option<KeyFrameId>,
+}
+
+impl Frame {
+    /// A frame from its features and stereo matches; no map point yet, identity pose.
+    pub fn new(
+        index: usize,
+        timestamp: f64,
+        features: FrameFeatures,
+        stereo: Vec<Option<StereoMeasurement>>,
+        scales: ScaleTables,
+        rig: &StereoRig,
+    ) -> Self {
+        let grid = KeypointGrid::new(&features.keypoints, rig.width, rig.height);
+        let n = features.len();
+        Self {
+            index,
+            timestamp,
+            features,
+            stereo,
+            scales,
+            grid,
+            map_points: vec![None; n],
+            pose_cw: Se3::identity(),
+            reference_keyframe: None,
+        }
+    }
+
+    /// Number of keypoints.
+    pub fn len(&self) -> usize {
+        self.features.len()
+    }
+
+    /// True when there is no keypoint.
+    pub fn is_empty(&self) -> bool {
+        self.features.is_empty()
+    }
+
+    /// Keypoints with a stereo depth.
+    pub fn stereo_count(&self) -> usize {
+        self.stereo.iter().flatten().count()
+    }
+
+    /// Keypoints matched to a map point.
+    pub fn tracked_count(&self) -> usize {
+        self.map_points.iter().flatten().count()
+    }
+
+    /// The stereo depth of keypoint `i`, when positive.
+    pub fn depth(&self, i: usize) -> Option<f64> {
+        self.stereo
+            .get(i)
+            .copied()
+            .flatten()
+            .map(|s| f64::from(s.depth))
+            .filter(|d| *d > 0.0)
+    }
+
+    /// The world position of keypoint `i` from its stereo depth.
+    pub fn unproject_world(&self, i: usize, rig: &StereoRig) -> Option<nalgebra::Vector3<f64>> {
+        let depth = self.depth(i)?;
+        let kp = self.features.keypoints.get(i)?;
+        let camera_point = rig.unproject(f64::from(kp.x), f64::from(kp.y), depth);
+        Some(self.pose_cw.inverse().transform_point(&camera_point))
+    }
+
+    /// The camera centre in world coordinates.
+    pub fn camera_center(&self) -> nalgebra::Vector3<f64> {
+        self.pose_cw.inverse().translation
+    }
+
+    /// What a keyframe made from this frame stores.
+    pub fn measurements(&self) -> FrameMeasurements {
+        FrameMeasurements {
+            keypoints: self.features.keypoints.clone(),
+            descriptors: self.features.descriptors.clone(),
+            stereo: self.stereo.clone(),
+            scales: self.scales.clone(),
+        }
+    }
+}

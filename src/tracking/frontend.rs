@@ -1,0 +1,142 @@
+//! Frame construction: left and right extraction in parallel, stereo
+//! matching along rows, the optional depth filter.
+
+use std::time::Instant;
+
+use crate::features::{FeatureExtractor, GrayImageView};
+use crate::map::StereoMeasurement;
+use crate::matching::{
+    match_stereo, DistanceThresholds, PeriodicGuard, StereoImages, StereoParams,
+};
+
+use super::error::{MapContext, SlamError};
+use super::frame::Frame;
+use super::rig::StereoRig;
+
+/// Milliseconds spent building one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct FrontendTimings {
+    /// Both extractions (run in parallel), wall clock.
+    pub extraction_ms: f64,
+    /// Stereo matching.
+    pub stereo_ms: f64,
+}
+
+/// Two extractors (one per image, so both run at once) and the stereo matcher.
+pub struct StereoFrontend {
+    left: Box<dyn FeatureExtractor>,
+    right: Box<dyn FeatureExtractor>,
+    stereo: StereoParams,
+}
+
+impl StereoFrontend {
+    /// A front end for `rig`. `left` and `right` must be configured alike;
+    /// `periodic` selects SuperPoint's periodic guards (use `false` for ORB).
+    pub fn new(
+        left: Box<dyn FeatureExtractor>,
+        right: Box<dyn FeatureExtractor>,
+        rig: &StereoRig,
+    ) -> Self {
+        let kind_is_float = left.name().starts_with("superpoint");
+        let thresholds = if kind_is_float {
+            DistanceThresholds::SUPERPOINT_L2
+        } else {
+            DistanceThresholds::ORB_HAMMING
+        };
+        let periodic = kind_is_float.then_some(PeriodicGuard::SUPERPOINT);
+        let stereo = StereoParams::new(
+            rig.camera.bf as f32,
+            rig.baseline as f32,
+            thresholds.stereo(),
+            periodic,
+        );
+        Self {
+            left,
+            right,
+            stereo,
+        }
+    }
+
+    /// The extractor's name, for reports.
+    pub fn extractor_name(&self) -> &str {
+        self.left.name()
+    }
+
+    /// Extracts both images in parallel, matches them along rows and drops
+    /// depths beyond the rig's `max_depth`.
+    pub fn build_frame(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        left_image: GrayImageView<'_>,
+        right_image: GrayImageView<'_>,
+        rig: &StereoRig,
+    ) -> Result<(Frame, FrontendTimings), SlamError> {
+        if (left_image.width(), left_image.height()) != (right_image.width(), right_image.height())
+        {
+            return Err(SlamError::ImageSizeMismatch {
+                frame: index,
+                left_width: left_image.width(),
+                left_height: left_image.height(),
+                right_width: right_image.width(),
+                right_height: right_image.height(),
+            });
+        }
+        let start = Instant::now();
+        let (left_extractor, right_extractor) = (&mut self.left, &mut self.right);
+        let (left, right) = std::thread::scope(|scope| {
+            let right_job = scope.spawn(move || right_extractor.extract(right_image));
+            let left = left_extractor.extract(left_image);
+            let right = right_job.join().unwrap_or_else(|_| {
+                Err(crate::features::FeatureError::InvalidConfig {
+                    name: "right extractor",
+                    value: "panicked".into(),
+                    expected: "no panic",
+                })
+            });
+            (left, right)
+        });
+        let left = left.map_err(|source| SlamError::Features {
+            frame: index,
+            source,
+        })?;
+        let right = right.map_err(|source| SlamError::Features {
+            frame: index,
+            source,
+        })?;
+        let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
+        let start = Instant::now();
+        let scales = self.left.scale_tables().clone();
+        let outcome = match_stereo(
+            &left,
+            &right,
+            StereoImages {
+                left: left_image,
+                right: right_image,
+            },
+            &scales,
+            &self.stereo,
+        )
+        .in_stage("stereo")?;
+        let stereo: Vec<Option<StereoMeasurement>> = outcome
+            .matches
+            .iter()
+            .map(|m| {
+                m.filter(|m| rig.max_depth.is_none_or(|d| f64::from(m.depth) <= d))
+                    .map(|m| StereoMeasurement {
+                        right_u: m.right_u,
+                        depth: m.depth,
+                    })
+            })
+            .collect();
+        let stereo_ms = start.elapsed().as_secs_f64() * 1e3;
+        let frame = Frame::new(index, timestamp, left, stereo, scales, rig);
+        Ok((
+            frame,
+            FrontendTimings {
+                extraction_ms,
+                stereo_ms,
+            },
+        ))
+    }
+}

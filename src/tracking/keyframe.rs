@@ -1,0 +1,173 @@
+//! Keyframes from tracking: the stereo map initialisation, ORB-SLAM3's
+//! keyframe decision for stereo, and keyframe insertion with new close points.
+
+use crate::map::{KeyFrameId, Map, MapPointId, PointDescriptor};
+
+use super::error::{MapContext, SlamError};
+use super::frame::Frame;
+use super::rig::StereoRig;
+
+/// Stereo points needed to initialise (ORB-SLAM3: 500).
+pub const MIN_INITIAL_STEREO_POINTS: usize = 500;
+
+/// Creates a map point from keypoint `i`'s stereo depth, observed by `keyframe`.
+fn point_from_stereo(
+    map: &mut Map,
+    keyframe: KeyFrameId,
+    frame: &Frame,
+    i: usize,
+    rig: &StereoRig,
+) -> Result<Option<MapPointId>, SlamError> {
+    let (Some(position), Some(descriptor)) = (
+        frame.unproject_world(i, rig),
+        PointDescriptor::from_set(&frame.features.descriptors, i),
+    ) else {
+        return Ok(None);
+    };
+    let id = map
+        .add_map_point(position, descriptor, keyframe)
+        .in_stage("new stereo point")?;
+    map.add_observation(id, keyframe, i)
+        .in_stage("new stereo point")?;
+    map.update_normal_and_depth(id);
+    Ok(Some(id))
+}
+
+/// ORB-SLAM3's `StereoInitialization`: the first frame with enough stereo
+/// points becomes a keyframe at the origin, with one point per stereo
+/// keypoint (after the depth filter). `None` when the frame has too few.
+pub fn initialise_map(
+    frame: &mut Frame,
+    map: &mut Map,
+    rig: &StereoRig,
+) -> Result<Option<KeyFrameId>, SlamError> {
+    if frame.stereo_count() < MIN_INITIAL_STEREO_POINTS {
+        return Ok(None);
+    }
+    let keyframe = map
+        .add_keyframe(
+            frame.index,
+            frame.timestamp,
+            frame.pose_cw,
+            frame.measurements(),
+        )
+        .in_stage("initialisation")?;
+    for i in 0..frame.len() {
+        if frame.depth(i).is_some() {
+            frame.map_points[i] = point_from_stereo(map, keyframe, frame, i, rig)?;
+        }
+    }
+    frame.reference_keyframe = Some(keyframe);
+    Ok(Some(keyframe))
+}
+
+/// What [`needs_keyframe`] looks at besides the frame.
+#[derive(Debug, Clone, Copy)]
+pub struct KeyFrameContext {
+    /// The reference keyframe.
+    pub reference: KeyFrameId,
+    /// Frame index of the last keyframe.
+    pub last_keyframe_frame: usize,
+    /// Frame index of the last relocalisation.
+    pub last_relocalisation_frame: Option<usize>,
+    /// Map points matched as inliers in the frame.
+    pub inliers: usize,
+    /// Frames between keyframes at most (the frame rate).
+    pub max_frames: usize,
+    /// Whether local mapping accepts keyframes now.
+    pub mapping_idle: bool,
+}
+
+/// ORB-SLAM3's `NeedNewKeyFrame` for stereo.
+pub fn needs_keyframe(frame: &Frame, map: &Map, rig: &StereoRig, ctx: &KeyFrameContext) -> bool {
+    let n_keyframes = map.keyframe_count();
+    if let Some(reloc) = ctx.last_relocalisation_frame {
+        if frame.index < reloc + ctx.max_frames && n_keyframes > ctx.max_frames {
+            return false;
+        }
+    }
+    let min_observations = if n_keyframes <= 2 { 2 } else { 3 };
+    let reference_matches = map.keyframe(ctx.reference).map_or(0, |kf| {
+        kf.observed_points()
+            .filter(|(_, p)| {
+                map.map_point(*p)
+                    .is_ok_and(|p| p.observation_count() >= min_observations)
+            })
+            .count()
+    });
+    let (mut tracked_close, mut untracked_close) = (0usize, 0usize);
+    for i in 0..frame.len() {
+        if frame.depth(i).is_some_and(|d| d < rig.close_depth) {
+            if frame.map_points[i].is_some() {
+                tracked_close += 1;
+            } else {
+                untracked_close += 1;
+            }
+        }
+    }
+    let need_close = tracked_close < 100 && untracked_close > 70;
+    let ref_ratio = if n_keyframes < 2 { 0.4 } else { 0.75 };
+    let inliers = ctx.inliers as f64;
+    let c1a = frame.index >= ctx.last_keyframe_frame + ctx.max_frames;
+    let c1b = ctx.mapping_idle;
+    let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
+    let c2 = (inliers < reference_matches as f64 * ref_ratio || need_close) && ctx.inliers > 15;
+    (c1a || c1b || c1c) && c2
+}
+
+/// ORB-SLAM3's `CreateNewKeyFrame` for stereo: the frame becomes a
+/// keyframe observing its matched points, and its close stereo keypoints
+/// without a point get one (nearest first; at least 100 points in all).
+/// Returns the keyframe and the points it created.
+pub fn insert_keyframe(
+    frame: &mut Frame,
+    map: &mut Map,
+    rig: &StereoRig,
+) -> Result<(KeyFrameId, Vec<MapPointId>), SlamError> {
+    let keyframe = map
+        .add_keyframe(
+            frame.index,
+            frame.timestamp,
+            frame.pose_cw,
+            frame.measurements(),
+        )
+        .in_stage("new keyframe")?;
+    for i in 0..frame.len() {
+        let Some(point) = frame.map_points[i].and_then(|p| map.resolve_point(p)) else {
+            frame.map_points[i] = None;
+            continue;
+        };
+        if map
+            .map_point(point)
+            .is_ok_and(|p| p.observations().contains_key(&keyframe))
+        {
+            // Two keypoints matched to one point: keep the first.
+            frame.map_points[i] = None;
+            continue;
+        }
+        map.add_observation(point, keyframe, i)
+            .in_stage("new keyframe")?;
+        frame.map_points[i] = Some(point);
+    }
+    let mut by_depth: Vec<(f64, usize)> = (0..frame.len())
+        .filter_map(|i| frame.depth(i).map(|d| (d, i)))
+        .collect();
+    by_depth.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let mut created = Vec::new();
+    let mut counted = 0usize;
+    for (depth, i) in by_depth {
+        if frame.map_points[i].is_none() {
+            if let Some(id) = point_from_stereo(map, keyframe, frame, i, rig)? {
+                frame.map_points[i] = Some(id);
+                created.push(id);
+            }
+        }
+        counted += 1;
+        if depth > rig.close_depth && counted > 100 {
+            break;
+        }
+    }
+    map.update_connections(keyframe);
+    frame.reference_keyframe = Some(keyframe);
+    Ok((keyframe, created))
+}

@@ -1,0 +1,113 @@
+//! Relocalisation: descriptor matches against keyframes' points, a PnP
+//! RANSAC pose (OpenCV), then pose-only refinement.
+
+use opencv::core::{Mat, Point2f, Point3f, Vector};
+use opencv::prelude::*;
+
+use nalgebra::{Rotation3, UnitQuaternion, Vector3};
+
+use crate::map::{KeyFrameId, Map, MapPointId};
+use crate::optim::Se3;
+
+use super::error::{MapContext, SlamError};
+use super::frame::Frame;
+use super::pose::refine_pose;
+use super::rig::StereoRig;
+use super::search::match_descriptors;
+
+/// Keyframes tried, newest first.
+const MAX_CANDIDATES: usize = 30;
+/// Inliers needed to accept a relocalisation (ORB-SLAM3: 50).
+pub const MIN_RELOCALISATION_INLIERS: usize = 50;
+
+/// A pose from 3-D/2-D matches by OpenCV's `solvePnPRansac` (EPnP inside
+/// RANSAC, 4 px threshold at level 0); `None` when it fails.
+fn pnp_ransac(
+    frame: &Frame,
+    map: &Map,
+    matches: &[(usize, MapPointId)],
+    rig: &StereoRig,
+) -> Result<Option<Se3>, SlamError> {
+    let mut object = Vector::<Point3f>::new();
+    let mut image = Vector::<Point2f>::new();
+    for (i, id) in matches {
+        let (Ok(p), Some(kp)) = (map.map_point(*id), frame.features.keypoints.get(*i)) else {
+            continue;
+        };
+        object.push(Point3f::new(
+            p.position.x as f32,
+            p.position.y as f32,
+            p.position.z as f32,
+        ));
+        image.push(Point2f::new(kp.x, kp.y));
+    }
+    if object.len() < 6 {
+        return Ok(None);
+    }
+    let c = &rig.camera;
+    let k = Mat::from_slice_2d(&[[c.fx, 0.0, c.cx], [0.0, c.fy, c.cy], [0.0, 0.0, 1.0]])
+        .in_stage("relocalisation camera matrix")?;
+    let mut rvec = Mat::default();
+    let mut tvec = Mat::default();
+    let mut inliers = Vector::<i32>::new();
+    let found = opencv::calib3d::solve_pnp_ransac(
+        &object,
+        &image,
+        &k,
+        &Mat::default(),
+        &mut rvec,
+        &mut tvec,
+        false,
+        300,
+        4.0,
+        0.99,
+        &mut inliers,
+        opencv::calib3d::SOLVEPNP_EPNP,
+    )
+    .in_stage("solvePnPRansac")?;
+    if !found || inliers.len() < 10 {
+        return Ok(None);
+    }
+    let r = |m: &Mat, i: i32| m.at::<f64>(i).map(|v| *v).in_stage("PnP result");
+    let axis = Vector3::new(r(&rvec, 0)?, r(&rvec, 1)?, r(&rvec, 2)?);
+    let t = Vector3::new(r(&tvec, 0)?, r(&tvec, 1)?, r(&tvec, 2)?);
+    let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::new(axis));
+    Ok(Some(Se3::new(rotation, t)))
+}
+
+/// ORB-SLAM3's `Relocalization` without bag-of-words: tries the newest
+/// keyframes; accepts the first pose with at least 50 inliers.
+pub fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool, SlamError> {
+    let candidates: Vec<KeyFrameId> = map
+        .keyframes()
+        .map(|kf| kf.id())
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .take(MAX_CANDIDATES)
+        .collect();
+    for kf in candidates {
+        let Ok(keyframe) = map.keyframe(kf) else {
+            continue;
+        };
+        let points: Vec<MapPointId> = keyframe.observed_points().map(|(_, p)| p).collect();
+        let matches = match_descriptors(frame, map, &points, 0.75)?;
+        if matches.len() < 15 {
+            continue;
+        }
+        let Some(pose) = pnp_ransac(frame, map, &matches, rig)? else {
+            continue;
+        };
+        frame.pose_cw = pose;
+        frame.map_points.iter_mut().for_each(|p| *p = None);
+        for (i, p) in &matches {
+            frame.map_points[*i] = Some(*p);
+        }
+        if refine_pose(frame, map, rig)? >= MIN_RELOCALISATION_INLIERS {
+            frame.reference_keyframe = Some(kf);
+            return Ok(true);
+        }
+    }
+    frame.map_points.iter_mut().for_each(|p| *p = None);
+    Ok(false)
+}

@@ -1,0 +1,169 @@
+//! Searches that match map points into the current frame.
+
+use nalgebra::Vector3;
+
+use crate::features::DescriptorSet;
+use crate::map::{Map, MapPointId};
+use crate::matching::{
+    match_brute_force, search_by_projection, DistanceThresholds, MatchParams, ProjectedPoint,
+    ProjectionParams,
+};
+use crate::optim::LieGroup;
+
+use super::error::{MapContext, SlamError};
+use super::frame::Frame;
+use super::rig::StereoRig;
+
+/// A map point predicted to be visible in the frame.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct VisiblePoint {
+    pub id: MapPointId,
+    pub u: f32,
+    pub v: f32,
+    pub octave: i32,
+    /// True when the view is nearly along the point's mean direction.
+    pub frontal: bool,
+}
+
+/// ORB-SLAM3's `isInFrustum`: the point projects into the image with
+/// positive depth, within its scale-invariance range and less than 60° from
+/// its mean viewing direction.
+pub(crate) fn visible_in_frame(
+    map: &Map,
+    id: MapPointId,
+    frame: &Frame,
+    rig: &StereoRig,
+) -> Option<VisiblePoint> {
+    let p = map.map_point(id).ok()?;
+    let pc = frame.pose_cw.transform_point(&p.position);
+    if pc.z <= 0.0 {
+        return None;
+    }
+    let uv = rig.camera.project(&pc);
+    if !rig.contains(uv.x, uv.y) {
+        return None;
+    }
+    let ray: Vector3<f64> = p.position - frame.camera_center();
+    let distance = ray.norm();
+    if !p.in_distance_range(distance) {
+        return None;
+    }
+    let view_cos = if p.normal.norm() > 0.0 {
+        ray.dot(&p.normal) / distance
+    } else {
+        1.0
+    };
+    if view_cos < 0.5 {
+        return None;
+    }
+    let scale_factor = f64::from(frame.scales.scale_factors.get(1).copied().unwrap_or(1.2));
+    let octave = p.predict_octave(distance, scale_factor, frame.scales.n_levels());
+    Some(VisiblePoint {
+        id,
+        u: uv.x as f32,
+        v: uv.y as f32,
+        octave: octave as i32,
+        frontal: view_cos > 0.998,
+    })
+}
+
+/// Searches `points` in the frame around their projections; matches go to
+/// keypoints with no map point yet. Returns the number of new matches.
+pub(crate) fn match_projected(
+    frame: &mut Frame,
+    map: &Map,
+    points: &[VisiblePoint],
+    radius: f32,
+    octaves: (i32, i32),
+    ratio: Option<f32>,
+) -> Result<usize, SlamError> {
+    let thresholds = DistanceThresholds::for_kind(frame.features.descriptors.kind());
+    let mut projected = Vec::with_capacity(points.len());
+    let mut ids = Vec::with_capacity(points.len());
+    for v in points {
+        let Ok(p) = map.map_point(v.id) else {
+            continue;
+        };
+        projected.push(ProjectedPoint {
+            u: v.u,
+            v: v.v,
+            predicted_octave: v.octave,
+            descriptor: p.descriptor.as_ref(),
+        });
+        ids.push(v.id);
+    }
+    let matches = search_by_projection(
+        &projected,
+        &frame.features,
+        &frame.grid,
+        &frame.scales.scale_factors,
+        ProjectionParams {
+            radius,
+            octaves_below: octaves.0,
+            octaves_above: octaves.1,
+            ratio,
+            max_distance: thresholds.high,
+        },
+    )
+    .in_stage("search by projection")?;
+    let mut added = 0;
+    for m in matches {
+        if frame.map_points[m.train].is_none() {
+            frame.map_points[m.train] = Some(ids[m.query]);
+            added += 1;
+        }
+    }
+    Ok(added)
+}
+
+/// Matches the frame's descriptors against the given points' descriptors
+/// (ratio + mutual), for tracking a reference keyframe and relocalisation.
+/// Returns `(keypoint index, point)` pairs.
+pub(crate) fn match_descriptors(
+    frame: &Frame,
+    map: &Map,
+    points: &[MapPointId],
+    ratio: f32,
+) -> Result<Vec<(usize, MapPointId)>, SlamError> {
+    let kind = frame.features.descriptors.kind();
+    let mut ids = Vec::with_capacity(points.len());
+    let mut set = match kind {
+        crate::features::DescriptorKind::Float { dim } => DescriptorSet::Float {
+            dim,
+            data: Vec::with_capacity(points.len() * dim),
+        },
+        crate::features::DescriptorKind::Binary => DescriptorSet::Binary {
+            data: Vec::with_capacity(points.len()),
+        },
+    };
+    for &id in points {
+        let Ok(p) = map.map_point(id) else { continue };
+        match (&mut set, p.descriptor.as_ref()) {
+            (DescriptorSet::Float { dim, data }, crate::features::DescriptorRef::Float(row))
+                if row.len() == *dim =>
+            {
+                data.extend_from_slice(row);
+            }
+            (DescriptorSet::Binary { data }, crate::features::DescriptorRef::Binary(row)) => {
+                data.push(*row);
+            }
+            _ => continue,
+        }
+        ids.push(id);
+    }
+    if ids.is_empty() {
+        return Ok(Vec::new());
+    }
+    let thresholds = DistanceThresholds::for_kind(kind);
+    let matches = match_brute_force(
+        &frame.features.descriptors,
+        &set,
+        MatchParams {
+            ratio: Some(ratio),
+            max_distance: thresholds.high,
+            mutual: true,
+        },
+    )
+    .in_stage("descriptor matching")?;
+    Ok(matches.iter().map(|m| (m.query, ids[m.train])).collect())
+}

@@ -1,0 +1,271 @@
+//! The tracking state machine: initialise, track (motion model, reference
+//! keyframe, relocalisation), track the local map, decide on keyframes.
+
+use crate::map::{KeyFrameId, Map, MapPointId};
+use crate::optim::{LieGroup, Se3};
+
+use super::error::{MapContext, SlamError};
+use super::frame::Frame;
+use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext};
+use super::local_map::track_local_map;
+use super::motion::{track_reference_keyframe, track_with_motion_model};
+use super::relocalise::{relocalise, MIN_RELOCALISATION_INLIERS};
+use super::rig::StereoRig;
+
+/// Where tracking stands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum TrackingState {
+    /// No map yet: waiting for a frame with enough stereo points.
+    NotInitialised,
+    /// The last frame was tracked.
+    Ok,
+    /// Tracking failed; relocalisation is tried on each frame.
+    Lost,
+}
+
+/// How a frame's pose was found.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub enum TrackingMethod {
+    /// It initialised the map.
+    Initialisation,
+    /// Constant-velocity motion model.
+    MotionModel,
+    /// Descriptor matching against the reference keyframe.
+    ReferenceKeyFrame,
+    /// Relocalisation against the keyframes.
+    Relocalisation,
+    /// No pose.
+    None,
+}
+
+/// The result of tracking one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackOutcome {
+    /// The state after this frame.
+    pub state: TrackingState,
+    /// How the pose was found.
+    pub method: TrackingMethod,
+    /// Map points matched as inliers.
+    pub inliers: usize,
+    /// The keyframe made from this frame, with the points it created.
+    pub new_keyframe: Option<(KeyFrameId, Vec<MapPointId>)>,
+    /// The frame's pose relative to its reference keyframe (`T_c,ref`), when tracked.
+    pub relative_pose: Option<(KeyFrameId, Se3)>,
+}
+
+/// Tracks frames against a map.
+#[derive(Debug)]
+pub struct Tracker {
+    rig: StereoRig,
+    state: TrackingState,
+    last_frame: Option<Frame>,
+    /// The last frame's pose relative to its reference keyframe, to follow BA updates.
+    last_relative: Option<(KeyFrameId, Se3)>,
+    velocity: Option<Se3>,
+    reference: Option<KeyFrameId>,
+    last_keyframe_frame: usize,
+    last_relocalisation_frame: Option<usize>,
+    max_frames: usize,
+}
+
+/// Inliers local-map tracking needs (ORB-SLAM3: 30, 50 just after relocalisation).
+const MIN_LOCAL_MAP_INLIERS: usize = 30;
+
+impl Tracker {
+    /// A tracker for `rig`, not yet initialised.
+    pub fn new(rig: StereoRig) -> Self {
+        Self {
+            rig,
+            state: TrackingState::NotInitialised,
+            last_frame: None,
+            last_relative: None,
+            velocity: None,
+            reference: None,
+            last_keyframe_frame: 0,
+            last_relocalisation_frame: None,
+            max_frames: rig.fps.round().max(1.0) as usize,
+        }
+    }
+
+    /// The current state.
+    pub fn state(&self) -> TrackingState {
+        self.state
+    }
+
+    /// The rig.
+    pub fn rig(&self) -> &StereoRig {
+        &self.rig
+    }
+
+    /// Tracks one frame, inserting a keyframe when needed. `mapping_idle`
+    /// says whether local mapping can take a keyframe now.
+    pub fn track(
+        &mut self,
+        mut frame: Frame,
+        map: &mut Map,
+        mapping_idle: bool,
+    ) -> Result<TrackOutcome, SlamError> {
+        if self.state == TrackingState::NotInitialised {
+            return self.initialise(frame, map);
+        }
+        // The last frame follows its reference keyframe (moved by BA, or culled).
+        if let (Some(last), Some((kf, rel))) = (self.last_frame.as_mut(), self.last_relative) {
+            if let Ok(kf_pose) = map.pose_cw_of(kf) {
+                last.pose_cw = rel.compose(&kf_pose);
+            }
+        }
+        if let Some(reference) = self.reference {
+            if map.keyframe(reference).is_err() {
+                self.reference = map.keyframes().last().map(|k| k.id());
+            }
+        }
+        let recently_relocalised = self
+            .last_relocalisation_frame
+            .is_some_and(|r| frame.index < r + self.max_frames);
+        let method = if self.state == TrackingState::Ok {
+            self.track_frame_to_frame(&mut frame, map)?
+        } else if relocalise(&mut frame, map, &self.rig)? {
+            self.last_relocalisation_frame = Some(frame.index);
+            TrackingMethod::Relocalisation
+        } else {
+            TrackingMethod::None
+        };
+        let mut inliers = 0;
+        if method != TrackingMethod::None {
+            frame.reference_keyframe = self.reference;
+            let outcome = track_local_map(&mut frame, map, &self.rig, recently_relocalised)?;
+            inliers = outcome.inliers;
+            let needed = if recently_relocalised || method == TrackingMethod::Relocalisation {
+                MIN_RELOCALISATION_INLIERS
+            } else {
+                MIN_LOCAL_MAP_INLIERS
+            };
+            if inliers < needed {
+                tracing::debug!(frame = frame.index, inliers, "local map tracking failed");
+            }
+            self.state = if inliers >= needed {
+                TrackingState::Ok
+            } else {
+                TrackingState::Lost
+            };
+        } else {
+            self.state = TrackingState::Lost;
+        }
+        if self.state != TrackingState::Ok {
+            self.velocity = None;
+            let relative_pose = None;
+            self.keep_last(frame, None);
+            return Ok(TrackOutcome {
+                state: self.state,
+                method: TrackingMethod::None,
+                inliers,
+                new_keyframe: None,
+                relative_pose,
+            });
+        }
+        if let Some(reference) = frame.reference_keyframe {
+            self.reference = Some(reference);
+        }
+        self.velocity = self
+            .last_frame
+            .as_ref()
+            .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()));
+        let mut new_keyframe = None;
+        if let Some(reference) = self.reference {
+            let ctx = KeyFrameContext {
+                reference,
+                last_keyframe_frame: self.last_keyframe_frame,
+                last_relocalisation_frame: self.last_relocalisation_frame,
+                inliers,
+                max_frames: self.max_frames,
+                mapping_idle,
+            };
+            if needs_keyframe(&frame, map, &self.rig, &ctx) {
+                let (kf, created) = insert_keyframe(&mut frame, map, &self.rig)?;
+                self.reference = Some(kf);
+                self.last_keyframe_frame = frame.index;
+                new_keyframe = Some((kf, created));
+            }
+        }
+        let relative_pose = self.relative_to_reference(&frame, map)?;
+        self.keep_last(frame, relative_pose);
+        Ok(TrackOutcome {
+            state: self.state,
+            method,
+            inliers,
+            new_keyframe,
+            relative_pose,
+        })
+    }
+
+    fn initialise(&mut self, mut frame: Frame, map: &mut Map) -> Result<TrackOutcome, SlamError> {
+        let Some(kf) = initialise_map(&mut frame, map, &self.rig)? else {
+            return Ok(TrackOutcome {
+                state: TrackingState::NotInitialised,
+                method: TrackingMethod::None,
+                inliers: 0,
+                new_keyframe: None,
+                relative_pose: None,
+            });
+        };
+        self.state = TrackingState::Ok;
+        self.reference = Some(kf);
+        self.last_keyframe_frame = frame.index;
+        let inliers = frame.tracked_count();
+        let created: Vec<MapPointId> = frame.map_points.iter().flatten().copied().collect();
+        let relative_pose = Some((kf, Se3::identity()));
+        self.keep_last(frame, relative_pose);
+        Ok(TrackOutcome {
+            state: self.state,
+            method: TrackingMethod::Initialisation,
+            inliers,
+            new_keyframe: Some((kf, created)),
+            relative_pose,
+        })
+    }
+
+    /// Motion model when there is a velocity, else (or when it fails) the
+    /// reference keyframe.
+    fn track_frame_to_frame(
+        &mut self,
+        frame: &mut Frame,
+        map: &Map,
+    ) -> Result<TrackingMethod, SlamError> {
+        let Some(last) = self.last_frame.as_ref() else {
+            return Ok(TrackingMethod::None);
+        };
+        if let Some(velocity) = self.velocity {
+            if track_with_motion_model(frame, last, &velocity, map, &self.rig)? {
+                return Ok(TrackingMethod::MotionModel);
+            }
+        }
+        let last_pose = last.pose_cw;
+        if let Some(reference) = self.reference {
+            if track_reference_keyframe(frame, &last_pose, reference, map, &self.rig)? {
+                return Ok(TrackingMethod::ReferenceKeyFrame);
+            }
+        }
+        Ok(TrackingMethod::None)
+    }
+
+    fn relative_to_reference(
+        &self,
+        frame: &Frame,
+        map: &Map,
+    ) -> Result<Option<(KeyFrameId, Se3)>, SlamError> {
+        let Some(reference) = self.reference else {
+            return Ok(None);
+        };
+        let kf_pose = map.pose_cw_of(reference).in_stage("relative pose")?;
+        Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
+    }
+
+    fn keep_last(&mut self, frame: Frame, relative: Option<(KeyFrameId, Se3)>) {
+        // An untracked frame is dropped: the motion model restarts from
+        // the last tracked one.
+        if relative.is_some() {
+            self.last_relative = relative;
+            self.last_frame = Some(frame);
+        }
+    }
+}
