@@ -37,5 +37,8 @@ fn superpoint_finds_at_least_300_keypoints_in_every_scene() {
             }
         }
     }
-    assert!(failures.is_empty(), "fewer than {MIN_KEYPOINTS} keypoints: {failures:?}");
+    assert!(
+        failures.is_empty(),
+        "fewer than {MIN_KEYPOINTS} keypoints: {failures:?}"
+    );
 }

@@ -211,12 +211,16 @@ mod tests {
         for scene in SceneName::ALL {
             SyntheticConfig::for_scene(scene).validate().unwrap();
         }
-        let mut c = SyntheticConfig::default();
-        c.baseline = -1.0;
+        let c = SyntheticConfig {
+            baseline: -1.0,
+            ..SyntheticConfig::default()
+        };
         let e = c.validate().unwrap_err().to_string();
         assert!(e.contains("baseline"), "{e}");
-        let mut c = SyntheticConfig::default();
-        c.frames = Some(0);
+        let c = SyntheticConfig {
+            frames: Some(0),
+            ..SyntheticConfig::default()
+        };
         assert!(c.validate().unwrap_err().to_string().contains("frames"));
     }
 

@@ -200,7 +200,7 @@ impl SyntheticSequence {
     fn expose(&self, gray: &[f32], gain: f64, offset: f64, index: usize, camera: u64) -> Vec<u8> {
         let sigma = self.config.pixel_noise;
         let width = self.camera.width;
-        let seed = mix64(self.config.seed ^ 0x6e6f_6973_65);
+        let seed = mix64(self.config.seed ^ 0x006e_6f69_7365);
         gray.iter()
             .enumerate()
             .map(|(i, &g)| {

@@ -121,7 +121,7 @@ fn rounded_rectangle_at(mut s: f64, width: f64, length: f64, radius: f64) -> ([f
 impl Wobble {
     /// Rotation angles (about x, y, z) and offsets (camera frame) at time `t`.
     fn at(&self, t: f64) -> ([f64; 3], [f64; 3]) {
-        let mut rng = SplitMix64::new(self.seed ^ 0x77_6f62_626c_65);
+        let mut rng = SplitMix64::new(self.seed ^ 0x0077_6f62_626c_0065);
         let mut channel = |amplitude: f64| {
             let mut sum = 0.0;
             for k in 0..3 {
