@@ -1,9 +1,22 @@
 //! Levenberg–Marquardt damping with Nielsen's update, shared by the solvers.
 //!
-//! The solvers minimise `F(x) = Σ ρ(χ²ᵢ)` by solving `(H + μI) δ = −b` with
-//! the Gauss–Newton (IRLS) Hessian `H = Σ JᵀwΩJ` and gradient `b = Σ JᵀwΩr`.
-//! The quadratic model predicts the decrease `δᵀ(μδ − b)`; the gain ratio
-//! `ρ = actual / predicted` accepts a step when positive.
+//! The solvers minimise `F(x) = Σ ρ(χ²ᵢ)` by solving `(H + μD) δ = −b` with
+//! the Gauss–Newton (IRLS) Hessian `H = Σ JᵀwΩJ`, gradient `b = Σ JᵀwΩr` and
+//! Marquardt's scaling `D = diag(H)` (each entry clamped to
+//! [[`MIN_SCALE`], [`MAX_SCALE`]], as Ceres does), so variables of very
+//! different stiffness (a near point, a far point, a rotation) are damped
+//! alike. The quadratic model predicts the decrease `δᵀ(μDδ − b)`; the gain
+//! ratio `ρ = actual / predicted` accepts a step when positive.
+
+/// Smallest diagonal scale (keeps unobserved variables regular).
+pub const MIN_SCALE: f64 = 1e-6;
+/// Largest diagonal scale.
+pub const MAX_SCALE: f64 = 1e32;
+
+/// Marquardt's scale for a diagonal entry of `H`.
+pub fn marquardt_scale(diagonal: f64) -> f64 {
+    diagonal.clamp(MIN_SCALE, MAX_SCALE)
+}
 
 /// Nielsen's damping state: `μ` and its growth factor `ν`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -13,13 +26,14 @@ pub struct NielsenDamping {
 }
 
 impl NielsenDamping {
-    /// g2o's default `τ` for the initial damping `μ₀ = τ · max diag(H)`.
-    pub const DEFAULT_TAU: f64 = 1e-5;
+    /// The default initial damping `μ₀` (relative to `diag(H)`; Ceres's
+    /// initial trust region of 1e4 is `μ₀ = 1e-4`).
+    pub const DEFAULT_INITIAL_MU: f64 = 1e-4;
 
-    /// Starts with `μ = τ · max_diagonal` (at least `τ · 1e-9`, so the system stays regular).
-    pub fn new(max_diagonal: f64, tau: f64) -> Self {
+    /// Starts with damping `initial_mu`.
+    pub fn new(initial_mu: f64) -> Self {
         Self {
-            mu: tau * max_diagonal.max(1e-9),
+            mu: initial_mu,
             nu: 2.0,
         }
     }
@@ -45,9 +59,9 @@ impl NielsenDamping {
 }
 
 /// The decrease the damped quadratic model predicts for step `δ`:
-/// `μ|δ|² − δᵀb`, from `|δ|²` and `δᵀb`.
-pub fn predicted_decrease(mu: f64, step_norm_squared: f64, step_dot_gradient: f64) -> f64 {
-    mu * step_norm_squared - step_dot_gradient
+/// `μ δᵀDδ − δᵀb`, from `δᵀDδ` and `δᵀb`.
+pub fn predicted_decrease(mu: f64, step_scaled_norm_squared: f64, step_dot_gradient: f64) -> f64 {
+    mu * step_scaled_norm_squared - step_dot_gradient
 }
 
 /// The gain ratio `ρ = actual / predicted`; `−∞` when the new cost is not

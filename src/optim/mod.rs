@@ -4,8 +4,9 @@
 pub mod damping;
 pub mod error;
 pub mod lie;
-pub mod pose_only;
+pub mod local_ba;
 pub mod pose_graph;
+pub mod pose_only;
 pub mod reprojection;
 
 pub use error::OptimError;

@@ -3,7 +3,7 @@
 use nalgebra::{Matrix6, Vector6};
 
 use super::PoseCorrespondence;
-use crate::optim::damping::{gain_ratio, predicted_decrease, NielsenDamping};
+use crate::optim::damping::{gain_ratio, marquardt_scale, predicted_decrease, NielsenDamping};
 use crate::optim::reprojection::{
     huber_cost, huber_weight, observation_chi2, CameraSpaceTerms, PinholeStereo, PoseMatrix,
 };
@@ -74,13 +74,13 @@ impl RefineProblem<'_> {
         let mut damping: Option<NielsenDamping> = None;
         for _ in 0..iterations {
             let (h, b, cost) = self.linearise(&pose);
-            let damping = damping.get_or_insert_with(|| {
-                NielsenDamping::new(h.diagonal().max(), NielsenDamping::DEFAULT_TAU)
-            });
+            let damping = damping
+                .get_or_insert_with(|| NielsenDamping::new(NielsenDamping::DEFAULT_INITIAL_MU));
+            let scale = h.diagonal().map(marquardt_scale);
             let mut accepted = None;
             for _ in 0..MAX_TRIES {
                 let mu = damping.mu();
-                let step = (h + Matrix6::identity() * mu)
+                let step = (h + Matrix6::from_diagonal(&(scale * mu)))
                     .cholesky()
                     .map(|c| c.solve(&(-b)));
                 let Some(step) = step else {
@@ -89,7 +89,8 @@ impl RefineProblem<'_> {
                 };
                 let candidate = pose.perturb_left(&step);
                 let new_cost = self.cost(&candidate);
-                let predicted = predicted_decrease(mu, step.norm_squared(), step.dot(&b));
+                let scaled_norm = step.component_mul(&scale).dot(&step);
+                let predicted = predicted_decrease(mu, scaled_norm, step.dot(&b));
                 let rho = gain_ratio(cost, new_cost, predicted);
                 if rho > 0.0 {
                     damping.accept(rho);

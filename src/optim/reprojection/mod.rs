@@ -19,7 +19,7 @@ mod terms;
 pub use camera::PinholeStereo;
 pub use linearise::{linearise_mono, linearise_stereo, ReprojectionJacobians};
 pub use observation::{inv_level_sigma2, Measurement, Observation};
-pub use robust::{huber_cost, huber_weight, CHI2_MONO_95, CHI2_STEREO_95};
+pub use robust::{huber_cost, huber_weight, kernel_cost_and_weight, CHI2_MONO_95, CHI2_STEREO_95};
 pub use terms::{observation_chi2, CameraSpaceTerms, PoseMatrix};
 
 #[cfg(test)]

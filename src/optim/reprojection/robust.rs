@@ -23,3 +23,12 @@ pub fn huber_weight(chi2: f64, delta: f64) -> f64 {
         delta / chi2.sqrt()
     }
 }
+
+/// The cost and IRLS weight of a χ² value: Huber with `huber_delta` when
+/// given, else the plain χ² (weight 1).
+pub fn kernel_cost_and_weight(chi2: f64, huber_delta: Option<f64>) -> (f64, f64) {
+    match huber_delta {
+        Some(delta) => (huber_cost(chi2, delta), huber_weight(chi2, delta)),
+        None => (chi2, 1.0),
+    }
+}

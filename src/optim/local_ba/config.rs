@@ -1,0 +1,53 @@
+//! Settings of local bundle adjustment.
+
+use crate::optim::damping::NielsenDamping;
+
+/// Settings of [`super::local_bundle_adjustment`]; the defaults follow
+/// ORB-SLAM's two-stage `LocalBundleAdjustment`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalBaConfig {
+    /// LM iterations of the first stage, with the Huber kernel (5).
+    pub first_stage_iterations: usize,
+    /// LM iterations of the second stage, over the inliers of the first (10);
+    /// 0 skips it (ORB-SLAM3 v1.0's single stage).
+    pub second_stage_iterations: usize,
+    /// Keep the Huber kernel in the second stage (false: ORB-SLAM drops it).
+    pub robust_second_stage: bool,
+    /// Stop when an accepted step lowers the cost by less than this fraction (1e-6).
+    pub relative_cost_tolerance: f64,
+    /// Stop when `|δ| ≤ tol · (|x| + tol)` (1e-10).
+    pub relative_step_tolerance: f64,
+    /// Initial damping `μ₀`, relative to `diag(H)` (1e-4).
+    pub initial_damping: f64,
+    /// Damping increases tried per iteration before stopping (g2o's 10).
+    pub max_tries_per_iteration: usize,
+    /// Worker threads for the per-point work; 0 uses the available parallelism.
+    /// Results are deterministic for a given value.
+    pub threads: usize,
+}
+
+impl Default for LocalBaConfig {
+    fn default() -> Self {
+        Self {
+            first_stage_iterations: 5,
+            second_stage_iterations: 10,
+            robust_second_stage: false,
+            relative_cost_tolerance: 1e-6,
+            relative_step_tolerance: 1e-10,
+            initial_damping: NielsenDamping::DEFAULT_INITIAL_MU,
+            max_tries_per_iteration: 10,
+            threads: 0,
+        }
+    }
+}
+
+impl LocalBaConfig {
+    /// The number of worker threads to use.
+    pub fn worker_threads(&self) -> usize {
+        if self.threads > 0 {
+            self.threads
+        } else {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        }
+    }
+}
