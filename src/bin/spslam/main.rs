@@ -2,6 +2,7 @@
 
 mod eval;
 mod extract;
+mod run;
 mod synth;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +24,8 @@ enum Command {
     Extract(extract::ExtractArgs),
     /// Evaluate an estimated trajectory against ground truth (KITTI metric, ATE, RPE).
     Eval(eval::EvalArgs),
+    /// Run stereo SLAM over a sequence and write its trajectory and report.
+    Run(run::RunArgs),
     /// Write a synthetic stereo/RGB-D sequence with exact ground truth (KITTI layout).
     Synth(synth::SynthArgs),
 }
@@ -39,6 +42,7 @@ fn main() -> std::process::ExitCode {
         Command::Extract(args) => extract::run_extract(args),
         Command::Eval(args) => eval::run_eval(args),
         Command::Synth(args) => synth::run_synth(args),
+        Command::Run(args) => run::run_slam(args),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
