@@ -118,7 +118,7 @@ fn the_tum_reader_opens_it_and_depth_holds_z_times_5000() {
             let stored = *png.at_2d::<u16>(y as i32, x as i32).unwrap();
             let z = frame.depth[y * frame.width + x] as f64;
             let expected = (z * 5000.0).round();
-            if expected >= 1.0 && expected <= 65535.0 {
+            if (1.0..=65535.0).contains(&expected) {
                 assert_eq!(stored as f64, expected, "({x}, {y})");
                 checked += 1;
             } else {
