@@ -1,7 +1,8 @@
 //! faer's sparse Cholesky (LLᵀ) with the symbolic analysis done once.
 //!
-//! The fill-reducing ordering (AMD) and the elimination structure depend
-//! only on the sparsity pattern, which a pose graph keeps between
+//! The matrix arrives as its lower triangle, already in elimination order
+//! (see [`super::ordering`]), so faer is told to use it as is. The elimination
+//! structure depends only on the sparsity pattern, which a pose graph keeps between
 //! iterations; each iteration only refactorises numerically and solves.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
@@ -14,7 +15,32 @@ use faer::{Conj, MatMut, Par, Side};
 
 use crate::optim::error::OptimError;
 
-/// A reusable sparse LLᵀ factorisation for one fixed upper-triangular pattern.
+/// The CSC structure of the transpose (rows come out sorted).
+fn transpose_pattern(
+    dimension: usize,
+    column_pointers: &[usize],
+    row_indices: &[usize],
+) -> (Vec<usize>, Vec<usize>) {
+    let mut counts = vec![0usize; dimension + 1];
+    for &row in row_indices {
+        counts[row + 1] += 1;
+    }
+    for index in 0..dimension {
+        counts[index + 1] += counts[index];
+    }
+    let transposed_pointers = counts.clone();
+    let mut next = counts;
+    let mut transposed_rows = vec![0usize; row_indices.len()];
+    for column in 0..dimension {
+        for &row in &row_indices[column_pointers[column]..column_pointers[column + 1]] {
+            transposed_rows[next[row]] = column;
+            next[row] += 1;
+        }
+    }
+    (transposed_pointers, transposed_rows)
+}
+
+/// A reusable sparse LLᵀ factorisation for one fixed lower-triangular pattern.
 pub(super) struct SparseCholesky {
     dimension: usize,
     column_pointers: Vec<usize>,
@@ -36,23 +62,27 @@ impl std::fmt::Debug for SparseCholesky {
 }
 
 impl SparseCholesky {
-    /// The symbolic analysis of the upper triangle given in CSC form.
+    /// The symbolic analysis of the lower triangle given in CSC form.
     pub fn analyse(
         dimension: usize,
         column_pointers: &[usize],
         row_indices: &[usize],
     ) -> Result<Self, OptimError> {
-        let pattern = SymbolicSparseColMatRef::new_checked(
+        // With the identity ordering faer's symbolic analysis reads its input
+        // as the upper triangle whatever the side, so it gets the transpose.
+        let (upper_column_pointers, upper_row_indices) =
+            transpose_pattern(dimension, column_pointers, row_indices);
+        let upper_pattern = SymbolicSparseColMatRef::new_checked(
             dimension,
             dimension,
-            column_pointers,
+            &upper_column_pointers,
             None,
-            row_indices,
+            &upper_row_indices,
         );
         let symbolic = factorize_symbolic_cholesky(
-            pattern,
+            upper_pattern,
             Side::Upper,
-            SymmetricOrdering::Amd,
+            SymmetricOrdering::Identity,
             CholeskySymbolicParams::default(),
         )
         .map_err(|error| OptimError::SymbolicFactorisation {
@@ -76,7 +106,7 @@ impl SparseCholesky {
         })
     }
 
-    /// Factorises `H` (upper-triangle values in the analysed pattern) and
+    /// Factorises `H` (lower-triangle values in the analysed pattern) and
     /// overwrites `right_hand_side` with `H⁻¹ · right_hand_side`.
     ///
     /// Fails with the pivot index if `H` is not numerically positive definite.
@@ -98,7 +128,7 @@ impl SparseCholesky {
             .factorize_numeric_llt(
                 &mut self.factor_values,
                 matrix,
-                Side::Upper,
+                Side::Lower,
                 Default::default(),
                 Par::Seq,
                 MemStack::new(&mut self.workspace),

@@ -16,6 +16,7 @@ mod cholesky;
 mod graph;
 mod kernel;
 mod normal_equations;
+mod ordering;
 mod pattern;
 pub mod residual;
 mod solver;

@@ -9,7 +9,7 @@ use nalgebra::{SMatrix, SVector};
 use super::graph::PoseGraphEdge;
 use super::kernel::robust_cost_and_weight;
 use super::pattern::{BlockPattern, BlockSlot};
-use super::residual::{edge_residual, linearise_edge};
+use super::residual::{edge_residual, linearise_edge_with_adjoint};
 use crate::optim::lie::LieGroup;
 
 /// `H` (upper-triangle CSC values), `b` and χ² at one linearisation point.
@@ -33,18 +33,29 @@ impl NormalEquations {
         }
     }
 
-    /// Assembles `H`, `b` and χ² at `nodes`.
+    /// Assembles `H`, `b` and χ² at `nodes`; `measurement_adjoints[k]` is
+    /// `Ad_Z` of edge `k`.
     pub fn assemble<G: LieGroup<N>, const N: usize>(
         &mut self,
         pattern: &BlockPattern<N>,
         nodes: &[G],
         edges: &[PoseGraphEdge<G, N>],
+        measurement_adjoints: &[SMatrix<f64, N, N>],
     ) {
         self.hessian_values.fill(0.0);
         self.gradient.fill(0.0);
         let mut chi2 = 0.0;
-        for (edge, slots) in edges.iter().zip(&pattern.edge_slots) {
-            let linear = linearise_edge(&edge.measurement, &nodes[edge.from], &nodes[edge.to]);
+        for ((edge, slots), adjoint) in edges
+            .iter()
+            .zip(&pattern.edge_slots)
+            .zip(measurement_adjoints)
+        {
+            let linear = linearise_edge_with_adjoint(
+                &edge.measurement,
+                adjoint,
+                &nodes[edge.from],
+                &nodes[edge.to],
+            );
             let weighted_error = edge.information * linear.residual;
             let squared_error = linear.residual.dot(&weighted_error);
             let (cost, weight) = robust_cost_and_weight(edge.robust_kernel.as_ref(), squared_error);
@@ -106,9 +117,14 @@ fn add_diagonal_block<const N: usize>(
     slot: &BlockSlot<N>,
     block: &SMatrix<f64, N, N>,
 ) {
+    // Lower triangle: column b holds rows b..N, starting at slot[b].
     for (b, &start) in slot.iter().enumerate() {
-        for (a, value) in values[start..=start + b].iter_mut().enumerate() {
-            *value += block[(a, b)];
+        let column = block.column(b);
+        for (value, &entry) in values[start..start + N - b]
+            .iter_mut()
+            .zip(column.iter().skip(b))
+        {
+            *value += entry;
         }
     }
 }

@@ -1,12 +1,17 @@
 //! The sparsity pattern of the normal equations, built once per graph.
 //!
-//! Free nodes become block columns of size `N` (in node order). `H` is stored
-//! as its upper triangle in compressed sparse columns: block column `c` holds
-//! the full `N×N` blocks of the connected block rows `r < c` (ascending) and
-//! then the upper triangle of its diagonal block. Every block is described by
-//! the start, in the value array, of each of its `N` columns, so entry
-//! `(a, b)` of a block lives at `column_starts[b] + a` and assembly is a
-//! scatter with no search.
+//! Free nodes become block columns of size `N`, placed in the elimination
+//! order of [`super::ordering`]. `H` is stored as its lower triangle in
+//! compressed sparse columns (what faer's supernodal Cholesky works on, so it
+//! is factorised without a copy): block column `c` holds the lower triangle of
+//! its diagonal block, then the full `N×N` blocks of the connected block rows
+//! `r > c` (ascending). Every block is described by the start, in the value
+//! array, of each of its `N` columns, so entry `(a, b)` of an off-diagonal
+//! block lives at `column_starts[b] + a` (of a diagonal block, `a ≥ b`, at
+//! `column_starts[b] + a − b`) and assembly is a scatter with no search.
+
+use super::ordering::block_elimination_positions;
+use crate::optim::error::OptimError;
 
 /// Where one `N×N` block of `H` lives in the CSC value array.
 pub(super) type BlockSlot<const N: usize> = [usize; N];
@@ -24,16 +29,17 @@ pub(super) struct EdgeSlots {
     pub off_diagonal: Option<(usize, bool)>,
 }
 
-/// The CSC structure of the upper triangle of `H` and the block positions.
+/// The CSC structure of the lower triangle of `H` and the block positions.
 #[derive(Debug, Clone)]
 pub(super) struct BlockPattern<const N: usize> {
-    /// Block column of each node, `None` for nodes held constant.
+    /// Block (position in the elimination order) of each node, `None` for
+    /// nodes held constant.
     pub block_of_node: Vec<Option<usize>>,
     /// Number of free nodes (block columns).
     pub block_count: usize,
     /// CSC column pointers (`N · block_count + 1`).
     pub column_pointers: Vec<usize>,
-    /// CSC row indices, sorted within each column.
+    /// CSC row indices, sorted within each column, diagonal first.
     pub row_indices: Vec<usize>,
     /// The diagonal block of each block column.
     pub diagonal_slots: Vec<BlockSlot<N>>,
@@ -48,22 +54,30 @@ pub(super) struct BlockPattern<const N: usize> {
 impl<const N: usize> BlockPattern<N> {
     /// Builds the pattern for `edges` (pairs `(from, to)`) over nodes whose
     /// `held_constant` flag is false.
-    pub fn new(held_constant: &[bool], edges: &[(usize, usize)]) -> Self {
-        let mut block_of_node = vec![None; held_constant.len()];
+    pub fn new(held_constant: &[bool], edges: &[(usize, usize)]) -> Result<Self, OptimError> {
+        let mut natural_block = vec![None; held_constant.len()];
         let mut block_count = 0;
         for (node, &constant) in held_constant.iter().enumerate() {
             if !constant {
-                block_of_node[node] = Some(block_count);
+                natural_block[node] = Some(block_count);
                 block_count += 1;
             }
         }
+        let natural_pairs: Vec<(usize, usize)> = edges
+            .iter()
+            .filter_map(|&(from, to)| Some((natural_block[from]?, natural_block[to]?)))
+            .collect();
+        let positions = block_elimination_positions(block_count, &natural_pairs)?;
+        let block_of_node: Vec<Option<usize>> = natural_block
+            .iter()
+            .map(|block| block.map(|natural| positions[natural]))
+            .collect();
 
-        // Block rows above the diagonal in each block column.
+        // Block rows below the diagonal in each block column.
         let mut rows_of_column: Vec<Vec<usize>> = vec![Vec::new(); block_count];
-        for &(from, to) in edges {
-            if let (Some(a), Some(b)) = (block_of_node[from], block_of_node[to]) {
-                rows_of_column[a.max(b)].push(a.min(b));
-            }
+        for &(a, b) in &natural_pairs {
+            let (a, b) = (positions[a], positions[b]);
+            rows_of_column[a.min(b)].push(a.max(b));
         }
         for rows in &mut rows_of_column {
             rows.sort_unstable();
@@ -75,8 +89,7 @@ impl<const N: usize> BlockPattern<N> {
         let mut row_indices = Vec::new();
         let mut diagonal_slots = Vec::with_capacity(block_count);
         let mut diagonal_value_indices = Vec::with_capacity(dimension);
-        // Slot of block (row, column) = first slot of the column + position of row.
-        let mut first_slot_of_column = Vec::with_capacity(block_count + 1);
+        let mut first_slot_of_column = Vec::with_capacity(block_count);
         let mut off_diagonal_slots = Vec::new();
         column_pointers.push(0);
         for (column, rows) in rows_of_column.iter().enumerate() {
@@ -84,14 +97,13 @@ impl<const N: usize> BlockPattern<N> {
             let mut slots = vec![[0usize; N]; rows.len()];
             let mut diagonal = [0usize; N];
             for b in 0..N {
-                let start = row_indices.len();
+                diagonal[b] = row_indices.len();
+                diagonal_value_indices.push(row_indices.len());
+                row_indices.extend(column * N + b..column * N + N);
                 for (position, &row) in rows.iter().enumerate() {
-                    slots[position][b] = start + position * N;
+                    slots[position][b] = row_indices.len();
                     row_indices.extend(row * N..row * N + N);
                 }
-                diagonal[b] = row_indices.len();
-                row_indices.extend(column * N..column * N + b + 1);
-                diagonal_value_indices.push(row_indices.len() - 1);
                 column_pointers.push(row_indices.len());
             }
             diagonal_slots.push(diagonal);
@@ -105,11 +117,11 @@ impl<const N: usize> BlockPattern<N> {
                 let to_block = block_of_node[to];
                 let off_diagonal = match (from_block, to_block) {
                     (Some(a), Some(b)) => {
-                        let (row, column) = (a.min(b), a.max(b));
-                        let rows = &rows_of_column[column];
-                        rows.binary_search(&row)
+                        let (column, row) = (a.min(b), a.max(b));
+                        rows_of_column[column]
+                            .binary_search(&row)
                             .ok()
-                            .map(|position| (first_slot_of_column[column] + position, a < b))
+                            .map(|position| (first_slot_of_column[column] + position, a > b))
                     }
                     _ => None,
                 };
@@ -121,7 +133,7 @@ impl<const N: usize> BlockPattern<N> {
             })
             .collect();
 
-        Self {
+        Ok(Self {
             block_of_node,
             block_count,
             column_pointers,
@@ -130,7 +142,7 @@ impl<const N: usize> BlockPattern<N> {
             off_diagonal_slots,
             edge_slots,
             diagonal_value_indices,
-        }
+        })
     }
 
     /// Size of the linear system (`N` per free node).
@@ -138,7 +150,7 @@ impl<const N: usize> BlockPattern<N> {
         N * self.block_count
     }
 
-    /// Number of stored values (upper triangle).
+    /// Number of stored values (lower triangle).
     pub fn value_count(&self) -> usize {
         self.row_indices.len()
     }

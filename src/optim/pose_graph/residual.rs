@@ -41,11 +41,30 @@ pub fn linearise_edge<G: LieGroup<N>, const N: usize>(
     from: &G,
     to: &G,
 ) -> EdgeLinearisation<N> {
-    let residual = edge_residual(measurement, from, to);
-    let (left_inverse, right_inverse) = inverse_jacobians::<G, N>(&residual);
+    linearise_edge_with_adjoint(measurement, &measurement.adjoint(), from, to)
+}
+
+/// [`linearise_edge`] with `Ad_Z` supplied (it is constant per edge, so the
+/// solver computes it once).
+pub fn linearise_edge_with_adjoint<G: LieGroup<N>, const N: usize>(
+    measurement: &G,
+    measurement_adjoint: &SMatrix<f64, N, N>,
+    from: &G,
+    to: &G,
+) -> EdgeLinearisation<N> {
+    let error_element = measurement.compose(from).compose(&to.inverse());
+    let residual = error_element.log();
+    let (left_inverse, right_inverse) = match inverse_jacobians_by_series::<G, N>(&residual) {
+        Some(pair) => pair,
+        // J_l(ξ) = Ad_exp(ξ) · J_r(ξ), so J_r⁻¹(ξ) = J_l⁻¹(ξ) · Ad_E with E = exp(e).
+        None => {
+            let left_inverse = G::left_jacobian_inverse(&residual);
+            (left_inverse, left_inverse * error_element.adjoint())
+        }
+    };
     EdgeLinearisation {
         residual,
-        jacobian_from: left_inverse * measurement.adjoint(),
+        jacobian_from: left_inverse * measurement_adjoint,
         jacobian_to: -right_inverse,
     }
 }
@@ -72,19 +91,31 @@ const SERIES_NORM_LIMIT: f64 = 1.0;
 
 /// `(J_l⁻¹(ξ), J_r⁻¹(ξ))`.
 ///
-/// For small `ξ` both come from one series: `J_l⁻¹ = I − ½ad + S`,
-/// `J_r⁻¹ = J_l⁻¹(−ξ) = I + ½ad + S` with `S` the even Bernoulli terms.
-/// Larger `ξ` (early iterations from a drifted start) use
+/// For small `ξ` both come from one series (see
+/// [`inverse_jacobians_by_series`]); larger `ξ` use
 /// [`LieGroup::left_jacobian_inverse`] / [`LieGroup::right_jacobian_inverse`].
 pub fn inverse_jacobians<G: LieGroup<N>, const N: usize>(
     tangent: &SVector<f64, N>,
 ) -> (SMatrix<f64, N, N>, SMatrix<f64, N, N>) {
-    let ad = G::small_adjoint(tangent);
-    if ad.norm() >= SERIES_NORM_LIMIT {
-        return (
+    inverse_jacobians_by_series::<G, N>(tangent).unwrap_or_else(|| {
+        (
             G::left_jacobian_inverse(tangent),
             G::right_jacobian_inverse(tangent),
-        );
+        )
+    })
+}
+
+/// `(J_l⁻¹(ξ), J_r⁻¹(ξ))` from the Bernoulli series, or `None` when
+/// `‖ad(ξ)‖_F ≥ 1` (the ten tabulated terms would not reach rounding).
+///
+/// `J_l⁻¹ = I − ½ad + S` and `J_r⁻¹ = J_l⁻¹(−ξ) = I + ½ad + S`, with `S` the
+/// even terms `Σ B_{2k}/(2k)! · ad^{2k}`, shared by both.
+pub fn inverse_jacobians_by_series<G: LieGroup<N>, const N: usize>(
+    tangent: &SVector<f64, N>,
+) -> Option<(SMatrix<f64, N, N>, SMatrix<f64, N, N>)> {
+    let ad = G::small_adjoint(tangent);
+    if ad.norm() >= SERIES_NORM_LIMIT {
+        return None;
     }
     let ad_squared = ad * ad;
     let mut power = ad_squared;
@@ -98,5 +129,5 @@ pub fn inverse_jacobians<G: LieGroup<N>, const N: usize>(
         power *= ad_squared;
     }
     let half_ad = ad * 0.5;
-    (even - half_ad, even + half_ad)
+    Some((even - half_ad, even + half_ad))
 }

@@ -7,7 +7,7 @@
 
 use std::time::Instant;
 
-use nalgebra::SVector;
+use nalgebra::{SMatrix, SVector};
 
 use super::cholesky::SparseCholesky;
 use super::graph::PoseGraph;
@@ -35,6 +35,7 @@ pub struct PoseGraphSolver<'g, G, const N: usize> {
     options: PoseGraphOptions,
     auto_fixed_node: Option<usize>,
     pattern: BlockPattern<N>,
+    measurement_adjoints: Vec<SMatrix<f64, N, N>>,
     cholesky: Option<SparseCholesky>,
     current: NormalEquations,
     candidate: NormalEquations,
@@ -73,7 +74,7 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
         let held_constant: Vec<bool> = (0..node_count)
             .map(|node| fixed[node] || !has_edge[node] || auto_fixed_node == Some(node))
             .collect();
-        let pattern = BlockPattern::<N>::new(&held_constant, &edge_ends);
+        let pattern = BlockPattern::<N>::new(&held_constant, &edge_ends)?;
         let cholesky = if pattern.dimension() == 0 {
             None
         } else {
@@ -84,7 +85,13 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
             )?)
         };
         let symbolic_seconds = start.elapsed().as_secs_f64();
+        let measurement_adjoints = graph
+            .edges()
+            .iter()
+            .map(|edge| edge.measurement.adjoint())
+            .collect();
         Ok(Self {
+            measurement_adjoints,
             current: NormalEquations::zeros(&pattern),
             candidate: NormalEquations::zeros(&pattern),
             damped_values: vec![0.0; pattern.value_count()],
@@ -122,21 +129,30 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
 
     /// Assembles `H` and `b` at the graph's current poses and returns χ².
     pub fn linearise(&mut self) -> f64 {
-        self.current
-            .assemble(&self.pattern, self.graph.nodes(), self.graph.edges());
+        self.current.assemble(
+            &self.pattern,
+            self.graph.nodes(),
+            self.graph.edges(),
+            &self.measurement_adjoints,
+        );
         self.current.chi2
     }
 
+    /// The block (position in the solver's variable order, `N` entries
+    /// each) of a node, `None` for nodes held constant.
+    pub fn block_of_node(&self, node: usize) -> Option<usize> {
+        self.pattern.block_of_node.get(node).copied().flatten()
+    }
+
     /// The last linearisation as a dense `H` (both triangles) and `b`, in the
-    /// solver's variable order (free nodes by index, `N` each). For checks on
+    /// solver's variable order (see [`Self::block_of_node`]). For checks on
     /// small problems.
     pub fn dense_normal_equations(&self) -> (Vec<Vec<f64>>, Vec<f64>) {
         let dimension = self.dimension();
         let mut hessian = vec![vec![0.0; dimension]; dimension];
-        for column in 0..dimension {
-            let range =
-                self.pattern.column_pointers[column]..self.pattern.column_pointers[column + 1];
-            for position in range {
+        let pointers = &self.pattern.column_pointers;
+        for (column, bounds) in pointers.windows(2).enumerate() {
+            for position in bounds[0]..bounds[1] {
                 let row = self.pattern.row_indices[position];
                 let value = self.current.hessian_values[position];
                 hessian[row][column] = value;
@@ -147,7 +163,8 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
     }
 
     /// Solves `(H + λI) δ = −b` for the last linearisation and returns `δ`
-    /// (free nodes in index order, `N` entries each, left perturbations).
+    /// in the solver's variable order (see [`Self::block_of_node`]; left
+    /// perturbations).
     pub fn solve_step(&mut self, lambda: f64) -> Result<&[f64], OptimError> {
         self.solve_damped(lambda)
             .map_err(|pivot| OptimError::NotPositiveDefinite {
@@ -264,8 +281,12 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
                 return Ok(Termination::SmallStep);
             }
             self.apply_step();
-            self.candidate
-                .assemble(&self.pattern, &self.candidate_nodes, self.graph.edges());
+            self.candidate.assemble(
+                &self.pattern,
+                &self.candidate_nodes,
+                self.graph.edges(),
+                &self.measurement_adjoints,
+            );
             let current_chi2 = self.current.chi2;
             let candidate_chi2 = self.candidate.chi2;
             let accepted = candidate_chi2.is_finite() && candidate_chi2 < current_chi2;
