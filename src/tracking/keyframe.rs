@@ -7,8 +7,11 @@ use super::error::{MapContext, SlamError};
 use super::frame::Frame;
 use super::rig::StereoRig;
 
-/// Stereo points needed to initialise (ORB-SLAM3: 500).
-pub const MIN_INITIAL_STEREO_POINTS: usize = 500;
+/// Keypoints needed to initialise (ORB-SLAM3's `StereoInitialization`
+/// tests `N > 500`, the keypoint count, not the stereo matches).
+pub const MIN_INITIAL_KEYPOINTS: usize = 500;
+/// Stereo points needed as well (spslam's guard: a map needs depths).
+pub const MIN_INITIAL_STEREO_POINTS: usize = 100;
 
 /// Creates a map point from keypoint `i`'s stereo depth, observed by `keyframe`.
 fn point_from_stereo(
@@ -33,15 +36,15 @@ fn point_from_stereo(
     Ok(Some(id))
 }
 
-/// ORB-SLAM3's `StereoInitialization`: the first frame with enough stereo
-/// points becomes a keyframe at the origin, with one point per stereo
+/// ORB-SLAM3's `StereoInitialization`: the first frame with more than 500
+/// keypoints (and at least 100 stereo points) becomes a keyframe at the origin, with one point per stereo
 /// keypoint (after the depth filter). `None` when the frame has too few.
 pub fn initialise_map(
     frame: &mut Frame,
     map: &mut Map,
     rig: &StereoRig,
 ) -> Result<Option<KeyFrameId>, SlamError> {
-    if frame.stereo_count() < MIN_INITIAL_STEREO_POINTS {
+    if frame.len() <= MIN_INITIAL_KEYPOINTS || frame.stereo_count() < MIN_INITIAL_STEREO_POINTS {
         return Ok(None);
     }
     let keyframe = map

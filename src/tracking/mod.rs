@@ -31,7 +31,8 @@ pub use error::SlamError;
 pub use frame::Frame;
 pub use frontend::{FrontendTimings, StereoFrontend};
 pub use keyframe::{
-    initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext, MIN_INITIAL_STEREO_POINTS,
+    initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext, MIN_INITIAL_KEYPOINTS,
+    MIN_INITIAL_STEREO_POINTS,
 };
 pub use local_map::{track_local_map, LocalMapOutcome};
 pub use motion::{track_reference_keyframe, track_with_motion_model, MOTION_MODEL_RADIUS};

@@ -39,6 +39,12 @@ pub struct RunArgs {
     /// Process only the first N frames.
     #[arg(long)]
     frames: Option<usize>,
+    /// Skip local bundle adjustment (for diagnosis).
+    #[arg(long)]
+    no_local_ba: bool,
+    /// Skip keyframe culling (for diagnosis).
+    #[arg(long)]
+    no_keyframe_culling: bool,
     /// Pyramid levels for the extractor [default: the settings' nLevels].
     #[arg(long)]
     levels: Option<usize>,
@@ -92,7 +98,8 @@ impl Source {
                 SlamSettings::rectified_stereo(c.fx, c.fy, c.cx, c.cy, c.baseline)
             }
             Self::Euroc(_, r) => {
-                let mut s = SlamSettings::rectified_stereo(r.fx(), r.fy(), r.cx(), r.cy(), r.baseline());
+                let mut s =
+                    SlamSettings::rectified_stereo(r.fx(), r.fy(), r.cx(), r.cy(), r.baseline());
                 s.camera.fps = 20.0;
                 s
             }
@@ -101,15 +108,23 @@ impl Source {
 
     fn load(&self, frame: &StereoFrame) -> Result<(GrayImage, GrayImage)> {
         match self {
-            Self::Kitti(_) => Ok((GrayImage::load(&frame.left)?, GrayImage::load(&frame.right)?)),
+            Self::Kitti(_) => Ok((
+                GrayImage::load(&frame.left)?,
+                GrayImage::load(&frame.right)?,
+            )),
             Self::Euroc(_, rectifier) => {
                 let read = |p: &Path| -> Result<opencv::core::Mat> {
-                    let text = p.to_str().with_context(|| format!("non-UTF-8 path {}", p.display()))?;
+                    let text = p
+                        .to_str()
+                        .with_context(|| format!("non-UTF-8 path {}", p.display()))?;
                     let m = imgcodecs::imread(text, imgcodecs::IMREAD_GRAYSCALE)?;
                     Ok(m)
                 };
                 let pair = rectifier.rectify(&read(&frame.left)?, &read(&frame.right)?)?;
-                Ok((GrayImage::from_mat(&pair.left)?, GrayImage::from_mat(&pair.right)?))
+                Ok((
+                    GrayImage::from_mat(&pair.left)?,
+                    GrayImage::from_mat(&pair.right)?,
+                ))
             }
         }
     }
@@ -117,7 +132,9 @@ impl Source {
     fn ground_truth(&self, frames: usize) -> Result<Option<Trajectory>> {
         match self {
             Self::Kitti(s) => {
-                let Some(path) = s.ground_truth_path() else { return Ok(None) };
+                let Some(path) = s.ground_truth_path() else {
+                    return Ok(None);
+                };
                 let gt = read_kitti(&path)?;
                 let n = frames.min(gt.len());
                 Ok(Some(gt.select(&(0..n).collect::<Vec<_>>())))
@@ -255,6 +272,8 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
     let (left, right) = extractors(args.extractor, &settings, levels)?;
     let frontend = StereoFrontend::new(left, right, &rig);
     let mut slam = StereoSlam::new(rig, frontend);
+    slam.mapper_mut().bundle_adjustment = !args.no_local_ba;
+    slam.mapper_mut().keyframe_culling = !args.no_keyframe_culling;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
 
@@ -303,9 +322,16 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
                 pairing,
                 ..EvalOptions::default()
             };
-            let report = evaluate(&gt, &trajectory, &options)?;
-            text.push_str(&report_table(&report));
-            Some(report)
+            match evaluate(&gt, &trajectory, &options) {
+                Ok(report) => {
+                    text.push_str(&report_table(&report));
+                    Some(report)
+                }
+                Err(e) => {
+                    text.push_str(&format!("evaluation failed: {e}\n"));
+                    None
+                }
+            }
         }
         None => None,
     };
@@ -320,7 +346,8 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
         frames: slam.records(),
     };
     let json = args.out.join("report.json");
-    let file = std::fs::File::create(&json).with_context(|| format!("cannot create {}", json.display()))?;
+    let file = std::fs::File::create(&json)
+        .with_context(|| format!("cannot create {}", json.display()))?;
     serde_json::to_writer_pretty(std::io::BufWriter::new(file), &report)?;
     println!(
         "wrote {}, {}, {} and {}",
