@@ -68,7 +68,7 @@ fn pnp_ransac(
     if !found || inliers.len() < 10 {
         return Ok(None);
     }
-    let r = |m: &Mat, i: i32| m.at::<f64>(i).map(|v| *v).in_stage("PnP result");
+    let r = |m: &Mat, i: i32| m.at::<f64>(i).copied().in_stage("PnP result");
     let axis = Vector3::new(r(&rvec, 0)?, r(&rvec, 1)?, r(&rvec, 2)?);
     let t = Vector3::new(r(&tvec, 0)?, r(&tvec, 1)?, r(&tvec, 2)?);
     let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::new(axis));

@@ -37,7 +37,7 @@ impl StereoRig {
             reason: "the settings have no stereo baseline (Stereo.b)".into(),
         })?;
         let camera = PinholeStereo::new(c.fx, c.fy, c.cx, c.cy, baseline * c.fx);
-        if !camera.is_valid() || !(baseline > 0.0) {
+        if !camera.is_valid() || baseline.is_nan() || baseline <= 0.0 {
             return Err(SlamError::InvalidCamera {
                 reason: format!(
                     "fx {}, fy {}, cx {}, cy {}, baseline {baseline}",
