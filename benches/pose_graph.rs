@@ -14,7 +14,6 @@ use nalgebra::{SMatrix, SVector};
 use spslam::optim::lie::{Se3, Sim3};
 use spslam::optim::pose_graph::{PoseGraph, PoseGraphOptions, PoseGraphSolver};
 
-#[allow(dead_code)]
 #[path = "../tests/common/pose_graph_problems.rs"]
 mod pose_graph_problems;
 
