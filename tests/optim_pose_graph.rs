@@ -10,6 +10,7 @@
 //!   `dof = N · (edges − free nodes)` (χ² distribution, std `√(2 dof)`),
 //!   RMS pose error at least 10× below the initial guess's;
 //! - fixed nodes: bit-identical (`==` on the pose);
+//! - assembly on 3 threads vs 1: final χ² to 1e-9 relative, poses to 1e-9;
 //! - dense reference (20 nodes, Gauss–Newton with numeric Jacobians and a
 //!   dense Cholesky): final χ² equal to 1e-6 relative; the assembled `H`, `b`
 //!   equal the reference's numeric ones to 1e-6 relative; one sparse solve
@@ -269,6 +270,45 @@ fn two_thousand_node_multi_lap_graph_converges() {
     assert_eq!(summary.termination, Termination::RelativeDecrease);
     assert!((summary.final_chi2 - dof).abs() < 5.0 * (2.0 * dof).sqrt());
     assert!(after * 10.0 < before);
+}
+
+/// Assembly split over threads gives the same run as one thread: final χ²
+/// to 1e-9 relative, poses to 1e-9.
+#[test]
+fn threaded_assembly_matches_single_thread() {
+    let nodes = 1000;
+    let truth = circle_ground_truth(nodes, 2, 20.0);
+    let layout = EdgeLayout {
+        odometry: true,
+        covisibility_offsets: vec![2, 3],
+        loop_stride: 2,
+        laps: 2,
+    };
+    let sigmas = Sim3::sigmas(0.002, 0.01, 0.002);
+    let corruption = Corruption {
+        noise_sigmas: sigmas,
+        drift_per_step: drift::<Sim3, 7>(0.001, 0.005, 0.001),
+    };
+    let problem =
+        build_problem::<Sim3, 7>(&truth, &layout.pairs(nodes), &corruption, &mut Rng::new(4));
+    let information = SMatrix::<f64, 7, 7>::from_diagonal(&sigmas.map(|s| 1.0 / (s * s)));
+    let mut results = Vec::new();
+    for assembly_threads in [1, 3] {
+        let mut graph = problem_graph(&problem, &[0], &information);
+        let options = PoseGraphOptions {
+            assembly_threads,
+            ..PoseGraphOptions::default()
+        };
+        let summary = graph.optimise(&options).expect("optimises");
+        results.push((summary.final_chi2, graph.nodes().to_vec()));
+    }
+    let (single_chi2, single_nodes) = &results[0];
+    let (threaded_chi2, threaded_nodes) = &results[1];
+    assert!((single_chi2 - threaded_chi2).abs() <= 1e-9 * single_chi2);
+    let worst = pose_errors(threaded_nodes, single_nodes)
+        .into_iter()
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-9, "{worst:e}");
 }
 
 // --------------------------------------------------------- gauge and fixed
@@ -577,6 +617,17 @@ fn bad_input_gives_typed_errors() {
         graph.optimise(&options),
         Err(OptimError::InvalidOption {
             option: "relative_chi2_tolerance",
+            ..
+        })
+    ));
+    let no_threads = PoseGraphOptions {
+        assembly_threads: 0,
+        ..PoseGraphOptions::default()
+    };
+    assert!(matches!(
+        graph.optimise(&no_threads),
+        Err(OptimError::InvalidOption {
+            option: "assembly_threads",
             ..
         })
     ));

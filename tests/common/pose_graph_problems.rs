@@ -46,7 +46,7 @@ impl Rng {
 }
 
 /// The groups the tests run on: SE3 (scale fixed) and Sim3.
-pub trait TestGroup<const N: usize>: LieGroup<N> {
+pub trait TestGroup<const N: usize>: LieGroup<N> + Send + Sync {
     /// A rigid pose as an element of the group (scale 1).
     fn from_rigid(pose: &Se3) -> Self;
     /// The scale (1 for SE3).

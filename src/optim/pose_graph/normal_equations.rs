@@ -34,21 +34,58 @@ impl NormalEquations {
     }
 
     /// Assembles `H`, `b` and χ² at `nodes`; `measurement_adjoints[k]` is
-    /// `Ad_Z` of edge `k`.
-    pub fn assemble<G: LieGroup<N>, const N: usize>(
+    /// `Ad_Z` of edge `k`. The edges are split into `1 + partials.len()`
+    /// contiguous ranges assembled on as many threads, `partials` being the
+    /// extra threads' buffers, then summed (the result depends on the number
+    /// of threads only through rounding).
+    pub fn assemble<G: LieGroup<N> + Sync, const N: usize>(
         &mut self,
+        partials: &mut [NormalEquations],
         pattern: &BlockPattern<N>,
         nodes: &[G],
         edges: &[PoseGraphEdge<G, N>],
         measurement_adjoints: &[SMatrix<f64, N, N>],
     ) {
+        let chunk = edges.len().div_ceil(partials.len() + 1).max(1);
+        let inputs = EdgeInputs {
+            pattern,
+            nodes,
+            edges,
+            measurement_adjoints,
+        };
+        std::thread::scope(|scope| {
+            for (thread, partial) in partials.iter_mut().enumerate() {
+                let start = ((thread + 1) * chunk).min(edges.len());
+                let end = (start + chunk).min(edges.len());
+                scope.spawn(move || partial.assemble_range(&inputs, start..end));
+            }
+            self.assemble_range(&inputs, 0..chunk.min(edges.len()));
+        });
+        for partial in partials.iter() {
+            for (total, part) in self.hessian_values.iter_mut().zip(&partial.hessian_values) {
+                *total += part;
+            }
+            for (total, part) in self.gradient.iter_mut().zip(&partial.gradient) {
+                *total += part;
+            }
+            self.chi2 += partial.chi2;
+        }
+    }
+
+    fn assemble_range<G: LieGroup<N>, const N: usize>(
+        &mut self,
+        inputs: &EdgeInputs<'_, G, N>,
+        range: std::ops::Range<usize>,
+    ) {
         self.hessian_values.fill(0.0);
         self.gradient.fill(0.0);
         let mut chi2 = 0.0;
-        for ((edge, slots), adjoint) in edges
+        let pattern = inputs.pattern;
+        let nodes = inputs.nodes;
+        for ((edge, slots), adjoint) in inputs.edges[range.clone()]
             .iter()
-            .zip(&pattern.edge_slots)
-            .zip(measurement_adjoints)
+            .zip(&pattern.edge_slots[range.clone()])
+            .zip(&inputs.measurement_adjoints[range])
         {
             let linear = linearise_edge_with_adjoint(
                 &edge.measurement,
@@ -96,6 +133,22 @@ impl NormalEquations {
         self.chi2 = chi2;
     }
 }
+
+/// What every assembly thread reads.
+struct EdgeInputs<'a, G, const N: usize> {
+    pattern: &'a BlockPattern<N>,
+    nodes: &'a [G],
+    edges: &'a [PoseGraphEdge<G, N>],
+    measurement_adjoints: &'a [SMatrix<f64, N, N>],
+}
+
+impl<G, const N: usize> Clone for EdgeInputs<'_, G, N> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<G, const N: usize> Copy for EdgeInputs<'_, G, N> {}
 
 /// `χ² = Σ ρ(eᵀ Ω e)` at `nodes`, without Jacobians.
 pub(super) fn total_chi2<G: LieGroup<N>, const N: usize>(

@@ -17,6 +17,9 @@ use super::summary::{Algorithm, IterationRecord, PoseGraphOptions, PoseGraphSumm
 use crate::optim::error::OptimError;
 use crate::optim::lie::LieGroup;
 
+/// Fewest edges per assembly thread (smaller graphs are assembled on fewer).
+const EDGES_PER_ASSEMBLY_THREAD: usize = 1000;
+
 /// Damping beyond which LM gives up (the step is then negligible anyway).
 const MAX_LAMBDA: f64 = 1e32;
 
@@ -39,6 +42,7 @@ pub struct PoseGraphSolver<'g, G, const N: usize> {
     cholesky: Option<SparseCholesky>,
     current: NormalEquations,
     candidate: NormalEquations,
+    partials: Vec<NormalEquations>,
     damped_values: Vec<f64>,
     step: Vec<f64>,
     candidate_nodes: Vec<G>,
@@ -46,7 +50,7 @@ pub struct PoseGraphSolver<'g, G, const N: usize> {
     iteration: usize,
 }
 
-impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
+impl<'g, G: LieGroup<N> + Send + Sync, const N: usize> PoseGraphSolver<'g, G, N> {
     /// Validates the options, builds the pattern and runs the symbolic factorisation.
     pub fn new(
         graph: &'g mut PoseGraph<G, N>,
@@ -85,6 +89,10 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
             )?)
         };
         let symbolic_seconds = start.elapsed().as_secs_f64();
+        let assembly_threads = options
+            .assembly_threads
+            .min(graph.edges().len() / EDGES_PER_ASSEMBLY_THREAD)
+            .max(1);
         let measurement_adjoints = graph
             .edges()
             .iter()
@@ -94,6 +102,9 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
             measurement_adjoints,
             current: NormalEquations::zeros(&pattern),
             candidate: NormalEquations::zeros(&pattern),
+            partials: (1..assembly_threads)
+                .map(|_| NormalEquations::zeros(&pattern))
+                .collect(),
             damped_values: vec![0.0; pattern.value_count()],
             step: vec![0.0; pattern.dimension()],
             candidate_nodes: graph.nodes().to_vec(),
@@ -130,6 +141,7 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
     /// Assembles `H` and `b` at the graph's current poses and returns χ².
     pub fn linearise(&mut self) -> f64 {
         self.current.assemble(
+            &mut self.partials,
             &self.pattern,
             self.graph.nodes(),
             self.graph.edges(),
@@ -282,6 +294,7 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
             }
             self.apply_step();
             self.candidate.assemble(
+                &mut self.partials,
                 &self.pattern,
                 &self.candidate_nodes,
                 self.graph.edges(),
@@ -346,7 +359,7 @@ impl<'g, G: LieGroup<N>, const N: usize> PoseGraphSolver<'g, G, N> {
     }
 }
 
-impl<G: LieGroup<N>, const N: usize> PoseGraph<G, N> {
+impl<G: LieGroup<N> + Send + Sync, const N: usize> PoseGraph<G, N> {
     /// Optimises the graph in place (see [`PoseGraphSolver`]).
     pub fn optimise(&mut self, options: &PoseGraphOptions) -> Result<PoseGraphSummary, OptimError> {
         PoseGraphSolver::new(self, *options)?.optimise()

@@ -13,6 +13,9 @@ pub enum Algorithm {
 }
 
 /// Options of [`super::PoseGraphSolver`].
+///
+/// The default uses Levenberg–Marquardt, at most 100 iterations, the
+/// relative χ² tolerance 1e-6 and up to 4 assembly threads.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseGraphOptions {
     /// Gauss–Newton or Levenberg–Marquardt.
@@ -27,6 +30,9 @@ pub struct PoseGraphOptions {
     pub step_tolerance: f64,
     /// `τ` in the initial damping `λ = τ · max diag H` (LM only).
     pub initial_lambda_scale: f64,
+    /// Threads assembling the normal equations (at least 1; graphs use at
+    /// most one thread per 1,000 edges). The factorisation is sequential.
+    pub assembly_threads: usize,
 }
 
 impl Default for PoseGraphOptions {
@@ -38,13 +44,22 @@ impl Default for PoseGraphOptions {
             absolute_chi2_tolerance: 1e-20,
             step_tolerance: 1e-12,
             initial_lambda_scale: 1e-5,
+            assembly_threads: std::thread::available_parallelism()
+                .map_or(1, |threads| threads.get().min(4)),
         }
     }
 }
 
 impl PoseGraphOptions {
-    /// Checks that every tolerance is finite and non-negative.
+    /// Checks that every tolerance is finite and non-negative and that at
+    /// least one assembly thread is asked for.
     pub fn validate(&self) -> Result<(), OptimError> {
+        if self.assembly_threads == 0 {
+            return Err(OptimError::InvalidOption {
+                option: "assembly_threads",
+                value: 0.0,
+            });
+        }
         for (option, value) in [
             ("relative_chi2_tolerance", self.relative_chi2_tolerance),
             ("absolute_chi2_tolerance", self.absolute_chi2_tolerance),
