@@ -174,9 +174,9 @@ impl Scene {
             );
             let point = reference.inverse().transform_point(&p_cam);
             points.push(point);
-            for pose in first..first + seen_by {
+            for (pose, camera_pose) in poses.iter().enumerate().skip(first).take(seen_by) {
                 let outlier = rng.uniform() < spec.outlier_fraction;
-                let obs = observe(&mut rng, &camera, &poses[pose], &point, spec, outlier);
+                let obs = observe(&mut rng, &camera, camera_pose, &point, spec, outlier);
                 observations.push(BaObservation {
                     pose,
                     point: index,

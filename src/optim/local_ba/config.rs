@@ -21,7 +21,10 @@ pub struct LocalBaConfig {
     pub initial_damping: f64,
     /// Damping increases tried per iteration before stopping (g2o's 10).
     pub max_tries_per_iteration: usize,
-    /// Worker threads for the per-point work; 0 uses the available parallelism.
+    /// Worker threads for the per-point passes; 0 uses the available
+    /// parallelism. Default 1: on the shared 2-vCPU machine a busy second
+    /// core made 2 threads 2.5× slower than 1 (a scoped join waits for a
+    /// preempted worker), and local mapping runs beside tracking anyway.
     /// Results are deterministic for a given value.
     pub threads: usize,
 }
@@ -36,7 +39,7 @@ impl Default for LocalBaConfig {
             relative_step_tolerance: 1e-10,
             initial_damping: NielsenDamping::DEFAULT_INITIAL_MU,
             max_tries_per_iteration: 10,
-            threads: 0,
+            threads: 1,
         }
     }
 }

@@ -16,13 +16,13 @@ pub(super) fn deactivate_outliers(
     active: &mut [bool],
 ) -> f64 {
     let mut inlier_chi2 = 0.0;
-    for point in 0..points.len() {
+    for (point, x) in points.iter().enumerate() {
         for k in layout.point_observations(point) {
             if !active[k] {
                 continue;
             }
             let o = &layout.observations[k];
-            let p_cam = poses[o.pose as usize].transform(&points[point]);
+            let p_cam = poses[o.pose as usize].transform(x);
             let chi2 = observation_chi2(camera, &p_cam, &o.obs);
             if p_cam.z > 0.0 && chi2 <= o.obs.chi2_threshold() {
                 inlier_chi2 += chi2;

@@ -170,7 +170,7 @@ impl<'a> Solver<'a> {
             self.candidate_poses[pose] = state.poses[pose].perturb_left(step);
             outcome.step_norm_squared += step.norm_squared();
             let scale = self.pose_hessian[f].diagonal().map(marquardt_scale);
-            outcome.step_scaled_norm_squared += step.component_mul(&scale).dot(&step);
+            outcome.step_scaled_norm_squared += step.component_mul(&scale).dot(step);
             outcome.step_dot_gradient += step.dot(&self.pose_gradient[f]);
             outcome.state_norm_squared += state.poses[pose].translation.norm_squared();
         }

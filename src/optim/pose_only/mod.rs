@@ -16,7 +16,7 @@
 //! under-determined system.
 //!
 //! Fewer than 3 correspondences (ORB-SLAM3's own minimum) is an error:
-//! [`OptimError::InsufficientCorrespondences`].
+//! [`OptimError::InsufficientCorrespondences`](crate::optim::OptimError::InsufficientCorrespondences).
 
 mod refine;
 mod rounds;
@@ -26,8 +26,6 @@ use nalgebra::Vector3;
 pub use rounds::optimise_pose;
 
 use super::reprojection::Observation;
-#[allow(unused_imports)]
-use super::OptimError;
 use super::Se3;
 
 /// A fixed world point and its observation in the frame being optimised.
