@@ -161,8 +161,8 @@ fn covisibility_weights_equal_brute_force_counts() {
 fn spanning_tree_survives_keyframe_removal() {
     let (mut map, ids) = chain_map(8, 60, 2);
     assert_eq!(map.parent(ids[0]), None, "the first keyframe is the root");
-    for k in 1..ids.len() {
-        assert!(map.parent(ids[k]).is_some(), "{} has a parent", ids[k]);
+    for id in &ids[1..] {
+        assert!(map.parent(*id).is_some(), "{id} has a parent");
     }
     let pose_before = map.keyframe(ids[3]).expect("kf").pose_cw();
     map.erase_keyframe(ids[3]).expect("erase");

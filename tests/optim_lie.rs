@@ -85,7 +85,12 @@ fn check_group<G: LieGroup<N>, const N: usize>(
         "exp = matrix exponential",
     );
     assert!((a.log() - xa).amax() < EXACT, "log(exp(ξ)) = ξ");
-    matrix_close(&G::exp(&a.log()).to_matrix(), &a.to_matrix(), EXACT, "exp(log(g)) = g");
+    matrix_close(
+        &G::exp(&a.log()).to_matrix(),
+        &a.to_matrix(),
+        EXACT,
+        "exp(log(g)) = g",
+    );
 
     // Adjoint identities.
     matrix_close(
@@ -185,7 +190,12 @@ fn tiny_and_zero_tangents_round_trip() {
     }
     // Pure scale and pure rotation with scale: both Taylor branches of W.
     let pure_scale = SVector::<f64, 7>::from_column_slice(&[0.0, 0.0, 0.0, 1.0, 2.0, 3.0, 0.5]);
-    check_group::<Sim3, 7>(pure_scale, -pure_scale, pure_scale, Vector3::new(-1.0, 0.5, 2.0));
+    check_group::<Sim3, 7>(
+        pure_scale,
+        -pure_scale,
+        pure_scale,
+        Vector3::new(-1.0, 0.5, 2.0),
+    );
     let no_scale = SVector::<f64, 7>::from_column_slice(&[0.4, 0.1, -0.3, 1.0, 2.0, 3.0, 0.0]);
     check_group::<Sim3, 7>(no_scale, -no_scale, no_scale, Vector3::new(-1.0, 0.5, 2.0));
 }
