@@ -4,7 +4,8 @@
 //! measurements and a drifting start.
 //!
 //! - `symbolic`: the one-off pattern build + AMD + symbolic Cholesky;
-//! - `iteration`: one linearisation (assembly) + numeric factorisation + solve;
+//! - `iteration`: one linearisation (assembly, one thread) + numeric
+//!   factorisation + solve; `iteration_2_threads` with two assembly threads;
 //! - `to_convergence`: a whole LM run from the drifting start (symbolic included).
 //!
 //! Before the criterion groups it prints, per problem, one run's iterations,
@@ -80,6 +81,20 @@ fn bench_problem<G: TestGroup<N>, const N: usize>(c: &mut Criterion, group: &str
             chi2 + step[0]
         })
     });
+    drop(solver);
+    let two_threads = PoseGraphOptions {
+        assembly_threads: 2,
+        ..options
+    };
+    let mut solver = PoseGraphSolver::new(&mut iteration_graph, two_threads).expect("solver");
+    g.bench_function("iteration_2_threads", |b| {
+        b.iter(|| {
+            let chi2 = solver.linearise();
+            let step = solver.solve_step(black_box(1e-3)).expect("solves");
+            chi2 + step[0]
+        })
+    });
+    drop(solver);
     g.bench_function("to_convergence", |b| {
         b.iter_batched(
             || graph.clone(),

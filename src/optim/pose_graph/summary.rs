@@ -15,7 +15,9 @@ pub enum Algorithm {
 /// Options of [`super::PoseGraphSolver`].
 ///
 /// The default uses Levenberg–Marquardt, at most 100 iterations, the
-/// relative χ² tolerance 1e-6 and up to 4 assembly threads.
+/// relative χ² tolerance 1e-6 and one assembly thread: on the shared
+/// 2-vCPU machine two threads were slower (`BENCHMARKS.md`); a dedicated
+/// multi-core machine may set more.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PoseGraphOptions {
     /// Gauss–Newton or Levenberg–Marquardt.
@@ -44,8 +46,7 @@ impl Default for PoseGraphOptions {
             absolute_chi2_tolerance: 1e-20,
             step_tolerance: 1e-12,
             initial_lambda_scale: 1e-5,
-            assembly_threads: std::thread::available_parallelism()
-                .map_or(1, |threads| threads.get().min(4)),
+            assembly_threads: 1,
         }
     }
 }
