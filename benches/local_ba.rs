@@ -19,6 +19,9 @@ use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use spslam::optim::local_ba::{local_bundle_adjustment, LocalBaConfig};
 use spslam::optim::pose_only::{optimise_pose, PoseOnlyConfig};
 
+#[path = "../tests/common/rng.rs"]
+mod rng;
+
 #[path = "../tests/common/synthetic_ba.rs"]
 mod synthetic_ba;
 

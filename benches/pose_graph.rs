@@ -15,6 +15,9 @@ use nalgebra::{SMatrix, SVector};
 use spslam::optim::lie::{Se3, Sim3};
 use spslam::optim::pose_graph::{PoseGraph, PoseGraphOptions, PoseGraphSolver};
 
+#[path = "../tests/common/rng.rs"]
+mod rng;
+
 #[path = "../tests/common/pose_graph_problems.rs"]
 mod pose_graph_problems;
 

@@ -4,46 +4,10 @@
 //! drifting initial guesses, generic over SE3 and Sim3.
 #![allow(dead_code)]
 
+pub use super::rng::Rng;
 use nalgebra::{SVector, UnitQuaternion, Vector3};
 use spslam::optim::lie::{LieGroup, Se3, Sim3};
 use spslam::optim::pose_graph::{PoseGraph, PoseGraphEdge};
-
-/// SplitMix64: small, seeded, reproducible.
-#[derive(Debug, Clone)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// A generator from a seed.
-    pub fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in `[0, 1)`.
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Standard normal (Box–Muller).
-    pub fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-    }
-
-    /// A vector of independent normals scaled per component by `sigmas`.
-    pub fn normal_vector<const N: usize>(&mut self, sigmas: &SVector<f64, N>) -> SVector<f64, N> {
-        SVector::<f64, N>::from_fn(|i, _| self.normal() * sigmas[i])
-    }
-}
 
 /// The groups the tests run on: SE3 (scale fixed) and Sim3.
 pub trait TestGroup<const N: usize>: LieGroup<N> + Send + Sync {

@@ -4,51 +4,12 @@
 //! information `1/σ²(octave)` is exact), optional gross outliers.
 #![allow(dead_code)]
 
+pub use super::rng::Rng;
 use nalgebra::{UnitQuaternion, Vector3, Vector6};
 use spslam::optim::local_ba::{BaObservation, BundleProblem};
 use spslam::optim::pose_only::PoseCorrespondence;
 use spslam::optim::reprojection::{inv_level_sigma2, Observation, PinholeStereo};
 use spslam::optim::{LieGroup, Se3};
-
-/// SplitMix64: a small seeded generator (no dependency).
-pub struct Rng(u64);
-
-impl Rng {
-    /// A generator from a seed.
-    pub fn new(seed: u64) -> Self {
-        Self(seed)
-    }
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-    /// Uniform in [lo, hi).
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.uniform()
-    }
-    /// Uniform integer in [lo, hi].
-    pub fn int(&mut self, lo: usize, hi: usize) -> usize {
-        lo + (self.next_u64() % (hi - lo + 1) as u64) as usize
-    }
-    /// Standard normal (Box–Muller).
-    pub fn normal(&mut self) -> f64 {
-        let u1 = self.uniform().max(1e-300);
-        let u2 = self.uniform();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-    }
-    /// A vector of independent normals times `sigma`.
-    pub fn normal3(&mut self, sigma: f64) -> Vector3<f64> {
-        Vector3::new(self.normal(), self.normal(), self.normal()) * sigma
-    }
-}
 
 /// KITTI 00's rectified camera (fx, fy, cx, cy, bf).
 pub fn kitti_camera() -> PinholeStereo {
