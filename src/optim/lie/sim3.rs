@@ -4,7 +4,7 @@ use nalgebra::{Matrix3, Matrix4, SMatrix, SVector, UnitQuaternion, Vector3};
 
 use super::jacobian::power_series;
 use super::se3::Se3;
-use super::so3::{hat, rotation_matrix, so3_exp, so3_log};
+use super::so3::{hat, rotation_matrix, so3_exp, so3_log, unit_product};
 use super::LieGroup;
 
 /// A similarity transform `p ↦ s·R·p + t`.
@@ -68,7 +68,7 @@ impl LieGroup<7> for Sim3 {
 
     fn compose(&self, other: &Self) -> Self {
         Self::new(
-            self.rotation * other.rotation,
+            unit_product(&self.rotation, &other.rotation),
             self.rotation * other.translation * self.scale + self.translation,
             self.scale * other.scale,
         )

@@ -11,6 +11,12 @@ pub fn hat(w: &Vector3<f64>) -> Matrix3<f64> {
     Matrix3::new(0.0, -w.z, w.y, w.z, 0.0, -w.x, -w.y, w.x, 0.0)
 }
 
+/// The product `a·b` of two rotations, renormalised so rounding cannot
+/// accumulate into a scale.
+pub fn unit_product(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> UnitQuaternion<f64> {
+    UnitQuaternion::new_normalize(a.quaternion() * b.quaternion())
+}
+
 /// Rotation from a rotation vector (axis × angle).
 pub fn so3_exp(w: &Vector3<f64>) -> UnitQuaternion<f64> {
     UnitQuaternion::from_scaled_axis(*w)
