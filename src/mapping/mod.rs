@@ -5,17 +5,20 @@
 //!
 //! [`LocalMapper::process_keyframe`] runs every step on a `&mut Map`; the
 //! driver ([`crate::tracking::StereoSlam`]) calls it after each keyframe,
-//! holding the shared map's write lock.
+//! holding the shared map's write lock, either inline or on the
+//! [`MappingThread`].
 
 mod bundle;
 mod fuse;
 mod triangulate;
+mod worker;
 
 use std::time::Instant;
 
 pub use bundle::{local_bundle_adjustment_around, BundleSummary};
 pub use fuse::fuse_with_neighbours;
 pub use triangulate::create_new_points;
+pub use worker::{MappingResult, MappingThread};
 
 use crate::map::{KeyFrameId, Map, MapPointId, PointCullingReport};
 use crate::tracking::{SlamError, StereoRig};

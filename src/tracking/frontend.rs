@@ -118,6 +118,7 @@ impl StereoFrontend {
             &self.stereo,
         )
         .in_stage("stereo")?;
+        tracing::debug!(frame = index, rejections = ?outcome.rejections, "stereo matching");
         let stereo: Vec<Option<StereoMeasurement>> = outcome
             .matches
             .iter()

@@ -77,11 +77,17 @@ pub struct KeyFrameContext {
     pub inliers: usize,
     /// Frames between keyframes at most (the frame rate).
     pub max_frames: usize,
-    /// Whether local mapping accepts keyframes now.
+    /// Whether local mapping is idle (ORB-SLAM3's `AcceptKeyFrames`).
     pub mapping_idle: bool,
+    /// Keyframes local mapping has not finished.
+    pub mapping_queue: usize,
 }
 
-/// ORB-SLAM3's `NeedNewKeyFrame` for stereo.
+/// A busy local mapping still takes a keyframe while fewer than this many
+/// wait (ORB-SLAM3, stereo: `KeyframesInQueue() < 3`).
+const MAX_MAPPING_QUEUE: usize = 3;
+
+/// ORB-SLAM3's `NeedNewKeyFrame` for stereo (without its BA interruption).
 pub fn needs_keyframe(frame: &Frame, map: &Map, rig: &StereoRig, ctx: &KeyFrameContext) -> bool {
     let n_keyframes = map.keyframe_count();
     if let Some(reloc) = ctx.last_relocalisation_frame {
@@ -115,7 +121,7 @@ pub fn needs_keyframe(frame: &Frame, map: &Map, rig: &StereoRig, ctx: &KeyFrameC
     let c1b = ctx.mapping_idle;
     let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
     let c2 = (inliers < reference_matches as f64 * ref_ratio || need_close) && ctx.inliers > 15;
-    (c1a || c1b || c1c) && c2
+    (c1a || c1b || c1c) && c2 && (ctx.mapping_idle || ctx.mapping_queue < MAX_MAPPING_QUEUE)
 }
 
 /// ORB-SLAM3's `CreateNewKeyFrame` for stereo: the frame becomes a

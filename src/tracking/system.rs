@@ -1,13 +1,15 @@
 //! The stereo SLAM driver: front end, tracking and local mapping over one
-//! shared map. Local mapping runs on the calling thread right after each
-//! new keyframe; it only needs the [`SharedMap`], so it can move to its own
-//! thread (fed a channel of keyframe ids) without changing the steps.
+//! shared map. Local mapping runs either inline, right after each new
+//! keyframe (deterministic: tests and benchmarks), or on its own thread
+//! ([`StereoSlam::spawn_mapping_thread`]) as in ORB-SLAM3, fed keyframes
+//! through a channel while the next frame is extracted and tracked.
 
+use std::collections::BTreeMap;
 use std::time::Instant;
 
 use crate::features::GrayImageView;
 use crate::map::{KeyFrameId, Map, SharedMap};
-use crate::mapping::{LocalMapper, MappingSummary};
+use crate::mapping::{LocalMapper, MappingResult, MappingSummary, MappingThread};
 use crate::optim::{LieGroup, Se3};
 
 use super::error::SlamError;
@@ -77,12 +79,26 @@ pub struct SlamSummary {
     pub mean_timings: FrameTimings,
 }
 
+/// Where local mapping runs.
+#[derive(Debug)]
+enum Mapping {
+    /// On the tracking thread, right after each keyframe.
+    Inline(LocalMapper),
+    /// On its own thread; keyframe id → index of the record that made it.
+    Thread {
+        thread: MappingThread,
+        waiting: BTreeMap<KeyFrameId, usize>,
+    },
+    /// Between the two (only while switching).
+    Switching,
+}
+
 /// Stereo SLAM over a sequence of rectified pairs.
 pub struct StereoSlam {
     rig: StereoRig,
     frontend: StereoFrontend,
     tracker: Tracker,
-    mapper: LocalMapper,
+    mapping: Mapping,
     map: SharedMap,
     records: Vec<FrameRecord>,
 }
@@ -94,7 +110,7 @@ impl StereoSlam {
             rig,
             frontend,
             tracker: Tracker::new(rig),
-            mapper: LocalMapper::new(rig),
+            mapping: Mapping::Inline(LocalMapper::new(rig)),
             map: Map::new().into_shared(),
             records: Vec::new(),
         }
@@ -105,9 +121,77 @@ impl StereoSlam {
         &self.map
     }
 
-    /// The local mapper (to switch BA or culling off).
-    pub fn mapper_mut(&mut self) -> &mut LocalMapper {
-        &mut self.mapper
+    /// The local mapper (to switch BA or culling off); `None` while it
+    /// runs on its own thread.
+    pub fn mapper_mut(&mut self) -> Option<&mut LocalMapper> {
+        match &mut self.mapping {
+            Mapping::Inline(mapper) => Some(mapper),
+            _ => None,
+        }
+    }
+
+    /// Moves local mapping to its own thread (no-op when it already is).
+    pub fn spawn_mapping_thread(&mut self) -> Result<(), SlamError> {
+        if let Mapping::Inline(_) = self.mapping {
+            let Mapping::Inline(mapper) = std::mem::replace(&mut self.mapping, Mapping::Switching)
+            else {
+                return Ok(());
+            };
+            let thread = MappingThread::spawn(mapper, self.map.clone())?;
+            self.mapping = Mapping::Thread {
+                thread,
+                waiting: BTreeMap::new(),
+            };
+        }
+        Ok(())
+    }
+
+    /// Waits for local mapping to finish every queued keyframe and brings
+    /// it back inline. Call before reading the final trajectory.
+    pub fn finish(&mut self) -> Result<(), SlamError> {
+        if let Mapping::Thread { .. } = self.mapping {
+            let Mapping::Thread { thread, waiting } =
+                std::mem::replace(&mut self.mapping, Mapping::Switching)
+            else {
+                return Ok(());
+            };
+            let (mapper, results) = thread.finish()?;
+            self.mapping = Mapping::Inline(mapper);
+            let mut waiting = waiting;
+            self.attach(results, &mut waiting)?;
+        }
+        Ok(())
+    }
+
+    /// Files local mapping's results under the frames that made the keyframes.
+    fn attach(
+        &mut self,
+        results: Vec<MappingResult>,
+        waiting: &mut BTreeMap<KeyFrameId, usize>,
+    ) -> Result<(), SlamError> {
+        for result in results {
+            let summary = result.summary?;
+            if let Some(record) = waiting
+                .remove(&result.keyframe)
+                .and_then(|i| self.records.get_mut(i))
+            {
+                record.timings.mapping_ms = summary.elapsed_ms;
+                record.mapping = Some(summary);
+            }
+        }
+        Ok(())
+    }
+
+    fn poll_mapping(&mut self) -> Result<(), SlamError> {
+        let (results, mut waiting) = match &mut self.mapping {
+            Mapping::Thread { thread, waiting } => (thread.poll(), std::mem::take(waiting)),
+            _ => return Ok(()),
+        };
+        let attached = self.attach(results, &mut waiting);
+        if let Mapping::Thread { waiting: w, .. } = &mut self.mapping {
+            *w = waiting;
+        }
+        attached
     }
 
     /// The extractor's name.
@@ -128,19 +212,38 @@ impl StereoSlam {
         left: GrayImageView<'_>,
         right: GrayImageView<'_>,
     ) -> Result<&FrameRecord, SlamError> {
+        self.poll_mapping()?;
         let (frame, frontend) = self
             .frontend
             .build_frame(index, timestamp, left, right, &self.rig)?;
         let stereo_points = frame.stereo_count();
+        let queue = match &self.mapping {
+            Mapping::Thread { thread, .. } => thread.pending(),
+            _ => 0,
+        };
+        if queue > 0 {
+            tracing::debug!(frame = index, queue, "local mapping busy");
+        }
         let mut map = self.map.write().map_err(|_| SlamError::PoisonedMap)?;
         let start = Instant::now();
-        let outcome = self.tracker.track(frame, &mut map, true)?;
+        let outcome = self.tracker.track(frame, &mut map, queue)?;
         let tracking_ms = start.elapsed().as_secs_f64() * 1e3;
         let mut mapping = None;
         if let Some((kf, created)) = &outcome.new_keyframe {
-            mapping = Some(self.mapper.process_keyframe(&mut map, *kf, created)?);
+            match &mut self.mapping {
+                Mapping::Inline(mapper) => {
+                    mapping = Some(mapper.process_keyframe(&mut map, *kf, created)?);
+                }
+                Mapping::Thread { thread, waiting } => {
+                    drop(map);
+                    thread.submit(*kf, created.clone())?;
+                    waiting.insert(*kf, self.records.len());
+                }
+                Mapping::Switching => {}
+            }
+        } else {
+            drop(map);
         }
-        drop(map);
         let mapping_ms = mapping.as_ref().map_or(0.0, |m| m.elapsed_ms);
         self.records.push(FrameRecord {
             index,

@@ -97,13 +97,13 @@ impl Tracker {
         &self.rig
     }
 
-    /// Tracks one frame, inserting a keyframe when needed. `mapping_idle`
-    /// says whether local mapping can take a keyframe now.
+    /// Tracks one frame, inserting a keyframe when needed. `mapping_queue`
+    /// is how many keyframes local mapping has not finished (0: idle).
     pub fn track(
         &mut self,
         mut frame: Frame,
         map: &mut Map,
-        mapping_idle: bool,
+        mapping_queue: usize,
     ) -> Result<TrackOutcome, SlamError> {
         if self.state == TrackingState::NotInitialised {
             return self.initialise(frame, map);
@@ -178,7 +178,8 @@ impl Tracker {
                 last_relocalisation_frame: self.last_relocalisation_frame,
                 inliers,
                 max_frames: self.max_frames,
-                mapping_idle,
+                mapping_idle: mapping_queue == 0,
+                mapping_queue,
             };
             if needs_keyframe(&frame, map, &self.rig, &ctx) {
                 let (kf, created) = insert_keyframe(&mut frame, map, &self.rig)?;

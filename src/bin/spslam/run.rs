@@ -48,6 +48,10 @@ pub struct RunArgs {
     /// Pyramid levels for the extractor [default: the settings' nLevels].
     #[arg(long)]
     levels: Option<usize>,
+    /// Run local mapping inline after each keyframe (deterministic, slower)
+    /// instead of on its own thread.
+    #[arg(long)]
+    inline_mapping: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -272,8 +276,13 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
     let (left, right) = extractors(args.extractor, &settings, levels)?;
     let frontend = StereoFrontend::new(left, right, &rig);
     let mut slam = StereoSlam::new(rig, frontend);
-    slam.mapper_mut().bundle_adjustment = !args.no_local_ba;
-    slam.mapper_mut().keyframe_culling = !args.no_keyframe_culling;
+    if let Some(mapper) = slam.mapper_mut() {
+        mapper.bundle_adjustment = !args.no_local_ba;
+        mapper.keyframe_culling = !args.no_keyframe_culling;
+    }
+    if !args.inline_mapping {
+        slam.spawn_mapping_thread()?;
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
 
@@ -288,6 +297,7 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
         bar.set_message(format!("{:?}, {} inliers", record.state, record.inliers));
         bar.inc(1);
     }
+    slam.finish()?;
     bar.finish();
 
     let trajectory = to_trajectory(&slam.trajectory()?);
