@@ -5,8 +5,8 @@ mod common;
 
 use spslam::features::{DescriptorRef, DescriptorSet, FrameFeatures, Keypoint};
 use spslam::matching::{
-    match_brute_force, match_temporal, search_by_projection, KeypointGrid, MatchParams,
-    ProjectedPoint, ProjectionParams, TemporalParams,
+    match_brute_force, match_temporal, search_by_projection, search_by_projection_filtered,
+    CandidateFilter, KeypointGrid, MatchParams, ProjectedPoint, ProjectionParams, TemporalParams,
 };
 
 const W: usize = 640;
@@ -79,6 +79,7 @@ fn projections_find_their_keypoints_and_agree_with_brute_force() {
                 v: kp.y + 2.0 * (rng.next() - 0.5),
                 predicted_octave: kp.octave,
                 descriptor: DescriptorRef::Float(d),
+                u_right: None,
             }
         })
         .collect();
@@ -100,12 +101,13 @@ fn projections_find_their_keypoints_and_agree_with_brute_force() {
         assert_eq!(m.train, 2 * m.query);
     }
     // With a window covering the whole image and all octaves, the search
-    // equals brute force without the mutual check.
+    // equals brute force without the mutual check. (No ratio test: the
+    // search applies it only between candidates of one octave.)
     let wide = ProjectionParams {
         radius: 2.0 * W as f32,
         octaves_below: 10,
         octaves_above: 10,
-        ratio: Some(0.8),
+        ratio: None,
         max_distance: f32::INFINITY,
     };
     let centred: Vec<ProjectedPoint> = points
@@ -127,7 +129,7 @@ fn projections_find_their_keypoints_and_agree_with_brute_force() {
         &query,
         &frame.descriptors,
         MatchParams {
-            ratio: Some(0.8),
+            ratio: None,
             max_distance: f32::INFINITY,
             mutual: false,
         },
@@ -141,6 +143,83 @@ fn projections_find_their_keypoints_and_agree_with_brute_force() {
         ..points[0]
     }];
     assert!(search_by_projection(&wrong, &frame, &grid, &scales, params).is_err());
+}
+
+/// Three keypoints in one window: 0 (octave 0) nearest the point's
+/// descriptor, 1 (octave 0) almost as near, 2 (octave 1) as near as 1.
+fn three_candidates() -> (FrameFeatures, [f32; DIM]) {
+    let mut query = [0.0f32; DIM];
+    query[0] = 1.0;
+    let row = |a: f32, k: usize| {
+        let mut r = [0.0f32; DIM];
+        r[0] = a;
+        r[k] = (1.0 - a * a).sqrt();
+        r
+    };
+    let rows = [row(0.99, 1), row(0.985, 2), row(0.985, 3)];
+    let keypoints = [(100.0, 100.0, 0), (102.0, 100.0, 0), (98.0, 101.0, 1)]
+        .map(|(x, y, octave)| Keypoint {
+            x,
+            y,
+            size: 31.0,
+            angle: 0.0,
+            response: 1.0,
+            octave,
+        })
+        .to_vec();
+    let features = FrameFeatures {
+        keypoints,
+        descriptors: DescriptorSet::Float {
+            dim: DIM,
+            data: rows.concat(),
+        },
+        timings: Default::default(),
+    };
+    (features, query)
+}
+
+#[test]
+fn projection_filters_taken_keypoints_right_columns_and_same_octave_ratio() {
+    let (frame, query) = three_candidates();
+    let grid = KeypointGrid::new(&frame.keypoints, W, H);
+    let scales = [1.0f32, 1.2];
+    let point = ProjectedPoint {
+        u: 100.0,
+        v: 100.0,
+        predicted_octave: 0,
+        descriptor: DescriptorRef::Float(&query),
+        u_right: Some(80.0),
+    };
+    let params = ProjectionParams {
+        radius: 5.0,
+        octaves_below: 1,
+        octaves_above: 1,
+        ratio: Some(0.8),
+        max_distance: 1.0,
+    };
+    let run = |filter: CandidateFilter| {
+        search_by_projection_filtered(&[point], &frame, &grid, &scales, params, filter)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .iter()
+            .map(|m| m.train)
+            .collect::<Vec<_>>()
+    };
+    // 0 and 1 share octave 0 and are too close for the ratio test.
+    assert_eq!(run(CandidateFilter::default()), Vec::<usize>::new());
+    // With 1 taken, the runner-up is 2 from octave 1: no ratio test, 0 wins.
+    let taken = [false, true, false];
+    let filter = CandidateFilter {
+        taken: Some(&taken),
+        right_u: None,
+    };
+    assert_eq!(run(filter), vec![0]);
+    // A right column 10 px from the projected one (window 5 px) excludes 0.
+    let right = [Some(90.0), None, Some(81.0)];
+    let filter = CandidateFilter {
+        taken: Some(&taken),
+        right_u: Some(&right),
+    };
+    assert_eq!(run(filter), vec![2]);
 }
 
 #[test]

@@ -49,7 +49,7 @@ fn reads_the_shipped_kitti_file_in_orb_slam3_1_0_layout() {
     assert_eq!(s.extractor.n_features, 1000);
     assert_eq!(s.extractor.n_levels, 8);
     assert_eq!(s.extractor.anms, AnmsMethod::Kdtree);
-    assert_eq!(s.max_depth, None, "maxDepth 0 means off");
+    assert_eq!(s.max_depth, Some(20.0), "the paper's depth filter");
 }
 
 #[test]

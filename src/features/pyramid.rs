@@ -67,6 +67,15 @@ fn features_per_level(n_features: usize, scale_factor: f32, n_levels: usize) -> 
     quotas
 }
 
+/// What to add to `x·scale` to get the level-0 position of pixel `x` of a
+/// level resized by `1/scale` with pixel-centre (bilinear) sampling:
+/// `(x + ½)·scale − ½ − x·scale = ½(scale − 1)`. ORB-SLAM3 omits it, which
+/// puts keypoints of level 7 (scale 3.58) 1.3 px up and left of their
+/// true position; SLAM geometry adds it back ([`crate::tracking::Frame::new`]).
+pub fn level_to_base_offset(scale: f32) -> f32 {
+    0.5 * (scale - 1.0)
+}
+
 /// The level images: level 0 is the input, level i is level i-1 resized by
 /// 1/scale_factor with bilinear interpolation (as ORB-SLAM3's `ComputePyramid`).
 pub fn build_pyramid(

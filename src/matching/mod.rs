@@ -27,7 +27,10 @@ pub use best_two::BestTwo;
 pub use brute_force::{match_brute_force, Match, MatchParams};
 pub use error::MatchError;
 pub use grid::{KeypointGrid, GRID_COLS, GRID_ROWS};
-pub use projection::{search_by_projection, ProjectedPoint, ProjectionParams};
+pub use projection::{
+    search_by_projection, search_by_projection_filtered, CandidateFilter, ProjectedPoint,
+    ProjectionParams,
+};
 pub use rotation::keep_consistent_rotation;
 pub use stereo::{
     match_stereo, PeriodicGuard, StereoImages, StereoMatch, StereoOutcome, StereoParams,

@@ -2,7 +2,7 @@
 //! projected map point is compared with the frame's keypoints inside a
 //! window scaled by its predicted octave.
 
-use super::{check_rows, BestTwo, KeypointGrid, Match, MatchError};
+use super::{check_rows, KeypointGrid, Match, MatchError};
 use crate::features::{DescriptorRef, FrameFeatures};
 
 /// A map point projected into the frame.
@@ -16,6 +16,56 @@ pub struct ProjectedPoint<'a> {
     pub predicted_octave: i32,
     /// The map point's representative descriptor.
     pub descriptor: DescriptorRef<'a>,
+    /// Projected right-image column (`u − bf/z`), when the frame is stereo.
+    pub u_right: Option<f32>,
+}
+
+/// Which of the frame's keypoints may be matched, and their stereo columns.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CandidateFilter<'a> {
+    /// `taken[k]`: keypoint k already has a map point and is skipped
+    /// (ORB-SLAM3 skips keypoints whose point has observations).
+    pub taken: Option<&'a [bool]>,
+    /// `right_u[k]`: keypoint k's right column; a candidate whose column is
+    /// farther than the window from the point's projected right column is
+    /// skipped (ORB-SLAM3's stereo check).
+    pub right_u: Option<&'a [Option<f32>]>,
+}
+
+/// The best and second-best candidates with their octaves: ORB-SLAM3
+/// applies the ratio test only when both come from the same octave.
+#[derive(Clone, Copy, Debug)]
+struct BestTwoLevels {
+    best: Option<(usize, f32, i32)>,
+    second: Option<(f32, i32)>,
+}
+
+impl BestTwoLevels {
+    fn offer(&mut self, k: usize, d: f32, octave: i32) {
+        match self.best {
+            Some((_, bd, _)) if d >= bd => {
+                if self.second.is_none_or(|(sd, _)| d < sd) {
+                    self.second = Some((d, octave));
+                }
+            }
+            Some((_, bd, bo)) => {
+                self.second = Some((bd, bo));
+                self.best = Some((k, d, octave));
+            }
+            None => self.best = Some((k, d, octave)),
+        }
+    }
+
+    fn accept(&self, max_distance: f32, ratio: Option<f32>) -> Option<(usize, f32)> {
+        let (k, d, octave) = self.best?;
+        if d > max_distance {
+            return None;
+        }
+        match (ratio, self.second) {
+            (Some(r), Some((sd, so))) if so == octave && d > r * sd => None,
+            _ => Some((k, d)),
+        }
+    }
 }
 
 /// The window and tests of a search by projection.
@@ -29,7 +79,8 @@ pub struct ProjectionParams {
     pub octaves_below: i32,
     /// See [`octaves_below`](Self::octaves_below).
     pub octaves_above: i32,
-    /// Ratio test on best / second best (`None` disables).
+    /// Ratio test on best / second best, applied when both are of the same
+    /// octave as in ORB-SLAM3 (`None` disables).
     pub ratio: Option<f32>,
     /// Maximum descriptor distance (ORB-SLAM3: TH_HIGH).
     pub max_distance: f32,
@@ -46,6 +97,25 @@ pub fn search_by_projection(
     grid: &KeypointGrid,
     scale_factors: &[f32],
     params: ProjectionParams,
+) -> Result<Vec<Match>, MatchError> {
+    search_by_projection_filtered(
+        points,
+        frame,
+        grid,
+        scale_factors,
+        params,
+        CandidateFilter::default(),
+    )
+}
+
+/// [`search_by_projection`] over the keypoints `filter` allows.
+pub fn search_by_projection_filtered(
+    points: &[ProjectedPoint<'_>],
+    frame: &FrameFeatures,
+    grid: &KeypointGrid,
+    scale_factors: &[f32],
+    params: ProjectionParams,
+    filter: CandidateFilter<'_>,
 ) -> Result<Vec<Match>, MatchError> {
     check_rows(frame)?;
     if !(params.radius.is_finite() && params.radius > 0.0) {
@@ -65,18 +135,39 @@ pub fn search_by_projection(
         };
         let lo = point.predicted_octave - params.octaves_below;
         let hi = point.predicted_octave + params.octaves_above;
-        let mut best = BestTwo::default();
-        for k in grid.features_in_area(point.u, point.v, params.radius * scale, Some((lo, hi))) {
+        let window = params.radius * scale;
+        let mut best = BestTwoLevels {
+            best: None,
+            second: None,
+        };
+        for k in grid.features_in_area(point.u, point.v, window, Some((lo, hi))) {
+            if filter
+                .taken
+                .and_then(|t| t.get(k))
+                .copied()
+                .unwrap_or(false)
+            {
+                continue;
+            }
+            if let (Some(ur), Some(Some(kr))) = (
+                point.u_right,
+                filter.right_u.and_then(|r| r.get(k)).copied(),
+            ) {
+                if (ur - kr).abs() > window {
+                    continue;
+                }
+            }
             let Some(row) = frame.descriptors.row(k) else {
                 continue;
             };
+            let octave = frame.keypoints.get(k).map_or(0, |kp| kp.octave);
             let Some(d) = point.descriptor.distance(&row) else {
                 return Err(MatchError::KindMismatch {
                     query: point.descriptor.kind(),
                     train: frame.descriptors.kind(),
                 });
             };
-            best.offer(k, d);
+            best.offer(k, d, octave);
         }
         if let Some((k, d)) = best.accept(params.max_distance, params.ratio) {
             if owner[k].is_none_or(|m| d < m.distance) {

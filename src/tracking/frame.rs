@@ -1,7 +1,7 @@
 //! A tracked frame: features from both images, stereo depths, the grid, the
 //! map points its keypoints are matched to, and its pose.
 
-use crate::features::pyramid::ScaleTables;
+use crate::features::pyramid::{level_to_base_offset, ScaleTables};
 use crate::features::FrameFeatures;
 use crate::map::{FrameMeasurements, KeyFrameId, MapPointId, StereoMeasurement};
 use crate::matching::KeypointGrid;
@@ -33,15 +33,33 @@ pub struct Frame {
 }
 
 impl Frame {
-    /// A frame from its features and stereo matches; no map point yet, identity pose.
+    /// A frame from its features and stereo matches; no map point yet,
+    /// identity pose. Keypoints from pyramid levels are moved from the
+    /// extractors' `x·s` (ORB-SLAM3's convention, kept at the C ABI) to
+    /// the pixel-centre-exact `(x + ½)·s − ½` of the bilinear pyramid, and
+    /// their right columns with them (the disparity is unchanged).
     pub fn new(
         index: usize,
         timestamp: f64,
-        features: FrameFeatures,
-        stereo: Vec<Option<StereoMeasurement>>,
+        mut features: FrameFeatures,
+        mut stereo: Vec<Option<StereoMeasurement>>,
         scales: ScaleTables,
         rig: &StereoRig,
     ) -> Self {
+        for (kp, st) in features.keypoints.iter_mut().zip(stereo.iter_mut()) {
+            let Some(&scale) = usize::try_from(kp.octave)
+                .ok()
+                .and_then(|o| scales.scale_factors.get(o))
+            else {
+                continue;
+            };
+            let offset = level_to_base_offset(scale);
+            kp.x += offset;
+            kp.y += offset;
+            if let Some(st) = st {
+                st.right_u += offset;
+            }
+        }
         let grid = KeypointGrid::new(&features.keypoints, rig.width, rig.height);
         let n = features.len();
         Self {

@@ -121,6 +121,18 @@ pub fn needs_keyframe(frame: &Frame, map: &Map, rig: &StereoRig, ctx: &KeyFrameC
     let c1b = ctx.mapping_idle;
     let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
     let c2 = (inliers < reference_matches as f64 * ref_ratio || need_close) && ctx.inliers > 15;
+    tracing::trace!(
+        frame = frame.index,
+        inliers = ctx.inliers,
+        reference_matches,
+        tracked_close,
+        untracked_close,
+        c1a,
+        c1b,
+        c1c,
+        c2,
+        "keyframe decision"
+    );
     (c1a || c1b || c1c) && c2 && (ctx.mapping_idle || ctx.mapping_queue < MAX_MAPPING_QUEUE)
 }
 

@@ -26,14 +26,15 @@ fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &StereoRig) ->
         if pc.z <= 0.0 {
             continue;
         }
-        let uv = rig.camera.project(&pc);
-        if !rig.contains(uv.x, uv.y) {
+        let uvr = rig.camera.project_stereo(&pc);
+        if !rig.contains(uvr.x, uvr.y) {
             continue;
         }
         out.push(VisiblePoint {
             id,
-            u: uv.x as f32,
-            v: uv.y as f32,
+            u: uvr.x as f32,
+            v: uvr.y as f32,
+            u_right: uvr.z as f32,
             octave: last.features.keypoints[i].octave,
             frontal: true,
         });

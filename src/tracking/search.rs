@@ -5,8 +5,8 @@ use nalgebra::Vector3;
 use crate::features::DescriptorSet;
 use crate::map::{Map, MapPointId};
 use crate::matching::{
-    match_brute_force, search_by_projection, DistanceThresholds, MatchParams, ProjectedPoint,
-    ProjectionParams,
+    match_brute_force, search_by_projection_filtered, CandidateFilter, DistanceThresholds,
+    MatchParams, ProjectedPoint, ProjectionParams,
 };
 use crate::optim::LieGroup;
 
@@ -20,6 +20,8 @@ pub(crate) struct VisiblePoint {
     pub id: MapPointId,
     pub u: f32,
     pub v: f32,
+    /// Projected right-image column.
+    pub u_right: f32,
     pub octave: i32,
     /// True when the view is nearly along the point's mean direction.
     pub frontal: bool,
@@ -39,8 +41,8 @@ pub(crate) fn visible_in_frame(
     if pc.z <= 0.0 {
         return None;
     }
-    let uv = rig.camera.project(&pc);
-    if !rig.contains(uv.x, uv.y) {
+    let uvr = rig.camera.project_stereo(&pc);
+    if !rig.contains(uvr.x, uvr.y) {
         return None;
     }
     let ray: Vector3<f64> = p.position - frame.camera_center();
@@ -60,8 +62,9 @@ pub(crate) fn visible_in_frame(
     let octave = p.predict_octave(distance, scale_factor, frame.scales.n_levels());
     Some(VisiblePoint {
         id,
-        u: uv.x as f32,
-        v: uv.y as f32,
+        u: uvr.x as f32,
+        v: uvr.y as f32,
+        u_right: uvr.z as f32,
         octave: octave as i32,
         frontal: view_cos > 0.998,
     })
@@ -89,10 +92,13 @@ pub(crate) fn match_projected(
             v: v.v,
             predicted_octave: v.octave,
             descriptor: p.descriptor.as_ref(),
+            u_right: Some(v.u_right),
         });
         ids.push(v.id);
     }
-    let matches = search_by_projection(
+    let taken: Vec<bool> = frame.map_points.iter().map(Option::is_some).collect();
+    let right_u: Vec<Option<f32>> = frame.stereo.iter().map(|s| s.map(|s| s.right_u)).collect();
+    let matches = search_by_projection_filtered(
         &projected,
         &frame.features,
         &frame.grid,
@@ -103,6 +109,10 @@ pub(crate) fn match_projected(
             octaves_above: octaves.1,
             ratio,
             max_distance: thresholds.high,
+        },
+        CandidateFilter {
+            taken: Some(&taken),
+            right_u: Some(&right_u),
         },
     )
     .in_stage("search by projection")?;
