@@ -7,6 +7,7 @@ use crate::optim::{LieGroup, Se3};
 use super::error::SlamError;
 use super::frame::Frame;
 use super::pose::refine_pose;
+use super::relocalise::pnp_ransac;
 use super::rig::StereoRig;
 use super::search::{match_descriptors, match_projected, VisiblePoint};
 
@@ -45,7 +46,7 @@ fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &StereoRig) ->
 /// ORB-SLAM3's `TrackWithMotionModel`: predicts the pose from the last
 /// frame's and the velocity, searches the last frame's points around their
 /// projections (window 7·scale, then twice that), then refines the pose.
-/// True when at least 10 inliers remain.
+/// True when at least 10 inliers, and a quarter of the matches, remain.
 pub fn track_with_motion_model(
     frame: &mut Frame,
     last: &Frame,
@@ -62,14 +63,26 @@ pub fn track_with_motion_model(
         matches = match_projected(frame, map, &points, 2.0 * MOTION_MODEL_RADIUS, (1, 1), None)?;
     }
     if matches < 20 {
+        tracing::debug!(
+            frame = frame.index,
+            matches,
+            "motion model: too few matches"
+        );
         return Ok(false);
     }
-    Ok(refine_pose(frame, map, rig)? >= 10)
+    let inliers = refine_pose(frame, map, rig)?;
+    tracing::debug!(frame = frame.index, matches, inliers, "motion model");
+    // ORB-SLAM3 needs 10 inliers; a prediction far off (a turn starting)
+    // also finds many wrong matches in its windows, so spslam requires the
+    // inliers to be at least a quarter of them too.
+    Ok(inliers >= 10 && 4 * inliers >= matches)
 }
 
 /// ORB-SLAM3's `TrackReferenceKeyFrame`, with descriptor matching (ratio
 /// 0.7, mutual) instead of bag-of-words: starting from the last pose, needs
-/// 15 matches and 10 inliers after refinement.
+/// 15 matches and 10 inliers after refinement. When fewer than half the
+/// matches survive (a sudden turn puts the last pose far off), a PnP RANSAC
+/// pose is refined as well and the one with more inliers is kept.
 pub fn track_reference_keyframe(
     frame: &mut Frame,
     last_pose: &Se3,
@@ -85,10 +98,40 @@ pub fn track_reference_keyframe(
     if matches.len() < 15 {
         return Ok(false);
     }
-    frame.map_points.iter_mut().for_each(|p| *p = None);
-    for (i, p) in matches {
-        frame.map_points[i] = Some(p);
-    }
+    let assign = |frame: &mut Frame| {
+        frame.map_points.iter_mut().for_each(|p| *p = None);
+        for &(i, p) in &matches {
+            frame.map_points[i] = Some(p);
+        }
+    };
+    assign(frame);
     frame.pose_cw = *last_pose;
-    Ok(refine_pose(frame, map, rig)? >= 10)
+    let from_last = refine_pose(frame, map, rig)?;
+    tracing::debug!(
+        frame = frame.index,
+        matches = matches.len(),
+        from_last,
+        "reference keyframe"
+    );
+    if 2 * from_last < matches.len() {
+        if let Some(pose) = pnp_ransac(frame, map, &matches, rig)? {
+            let (kept_pose, kept_points) = (frame.pose_cw, frame.map_points.clone());
+            assign(frame);
+            frame.pose_cw = pose;
+            let from_pnp = refine_pose(frame, map, rig)?;
+            tracing::debug!(
+                frame = frame.index,
+                from_last,
+                from_pnp,
+                "reference keyframe: PnP RANSAC start"
+            );
+            if from_pnp <= from_last {
+                frame.pose_cw = kept_pose;
+                frame.map_points = kept_points;
+            } else {
+                return Ok(from_pnp >= 10);
+            }
+        }
+    }
+    Ok(from_last >= 10)
 }

@@ -22,7 +22,7 @@ pub const MIN_RELOCALISATION_INLIERS: usize = 50;
 
 /// A pose from 3-D/2-D matches by OpenCV's `solvePnPRansac` (EPnP inside
 /// RANSAC, 4 px threshold at level 0); `None` when it fails.
-fn pnp_ransac(
+pub(crate) fn pnp_ransac(
     frame: &Frame,
     map: &Map,
     matches: &[(usize, MapPointId)],

@@ -122,7 +122,7 @@ impl Tracker {
         let recently_relocalised = self
             .last_relocalisation_frame
             .is_some_and(|r| frame.index < r + self.max_frames);
-        let method = if self.state == TrackingState::Ok {
+        let mut method = if self.state == TrackingState::Ok {
             self.track_frame_to_frame(&mut frame, map)?
         } else if relocalise(&mut frame, map, &self.rig)? {
             self.last_relocalisation_frame = Some(frame.index);
@@ -132,14 +132,21 @@ impl Tracker {
         };
         let mut inliers = 0;
         if method != TrackingMethod::None {
-            frame.reference_keyframe = self.reference;
-            let outcome = track_local_map(&mut frame, map, &self.rig, recently_relocalised)?;
-            inliers = outcome.inliers;
             let needed = if recently_relocalised || method == TrackingMethod::Relocalisation {
                 MIN_RELOCALISATION_INLIERS
             } else {
                 MIN_LOCAL_MAP_INLIERS
             };
+            inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
+            if inliers < needed && method == TrackingMethod::MotionModel {
+                // The prediction passed its own test but led the local map
+                // astray (a turn starting or ending): start again from the
+                // reference keyframe, as if the motion model had failed.
+                if self.track_reference(&mut frame, map)? {
+                    method = TrackingMethod::ReferenceKeyFrame;
+                    inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
+                }
+            }
             if inliers < needed {
                 tracing::debug!(frame = frame.index, inliers, "local map tracking failed");
             }
@@ -225,6 +232,33 @@ impl Tracker {
         })
     }
 
+    /// Local-map tracking from the frame's current pose and matches; returns the inliers.
+    fn track_local_map_logged(
+        &self,
+        frame: &mut Frame,
+        map: &mut Map,
+        recently_relocalised: bool,
+    ) -> Result<usize, SlamError> {
+        frame.reference_keyframe = self.reference;
+        let outcome = track_local_map(frame, map, &self.rig, recently_relocalised)?;
+        tracing::debug!(
+            frame = frame.index,
+            inliers = outcome.inliers,
+            visible = outcome.visible_points,
+            local_keyframes = outcome.local_keyframes,
+            "local map"
+        );
+        Ok(outcome.inliers)
+    }
+
+    /// Tracks the reference keyframe from the last frame's pose.
+    fn track_reference(&self, frame: &mut Frame, map: &Map) -> Result<bool, SlamError> {
+        let (Some(last), Some(reference)) = (self.last_frame.as_ref(), self.reference) else {
+            return Ok(false);
+        };
+        track_reference_keyframe(frame, &last.pose_cw, reference, map, &self.rig)
+    }
+
     /// Motion model when there is a velocity, else (or when it fails) the
     /// reference keyframe.
     fn track_frame_to_frame(
@@ -240,11 +274,8 @@ impl Tracker {
                 return Ok(TrackingMethod::MotionModel);
             }
         }
-        let last_pose = last.pose_cw;
-        if let Some(reference) = self.reference {
-            if track_reference_keyframe(frame, &last_pose, reference, map, &self.rig)? {
-                return Ok(TrackingMethod::ReferenceKeyFrame);
-            }
+        if self.track_reference(frame, map)? {
+            return Ok(TrackingMethod::ReferenceKeyFrame);
         }
         Ok(TrackingMethod::None)
     }
