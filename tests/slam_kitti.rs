@@ -10,7 +10,6 @@ use spslam::settings::SlamSettings;
 use spslam::tracking::{StereoFrontend, StereoRig, StereoSlam, TrackingState};
 
 #[test]
-#[ignore = "first version: tracking is lost about halfway through the excerpt (issue 7); run with --ignored"]
 fn kitti_06_excerpt_superpoint() {
     let Some(data) = common::setup("kitti_06_excerpt_superpoint") else {
         return;

@@ -8,8 +8,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use opencv::imgcodecs;
 use spslam::dataset::{EurocSequence, KittiSequence, StereoFrame, StereoRectifier};
 use spslam::eval::{
-    evaluate, read_euroc, read_kitti, table::report_table, write_kitti, write_tum, EvalOptions,
-    EvalReport, Pairing, Trajectory, DEFAULT_MAX_DIFF,
+    align, evaluate, read_euroc, read_kitti, report::pair_trajectories, table::report_table,
+    write_error_plot, write_kitti, write_trajectory_plot, write_tum, Alignment, EvalOptions,
+    EvalReport, Pairing, PlotPlane, Trajectory, DEFAULT_MAX_DIFF,
 };
 use spslam::features::{
     AnmsMethod, ExtractorConfig, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor,
@@ -27,7 +28,7 @@ pub struct RunArgs {
     /// Feature extractor.
     #[arg(long, value_enum, default_value_t = ExtractorChoice::Superpoint)]
     extractor: ExtractorChoice,
-    /// SuperPoint keypoint selection [default: the settings' SuperPoint.anms].
+    /// SuperPoint keypoint selection: kdtree, ssc or none [default: the settings' SuperPoint.anms].
     #[arg(long)]
     anms: Option<AnmsMethod>,
     /// Output folder for trajectories and reports.
@@ -269,6 +270,86 @@ fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
     )
 }
 
+/// Final-position drift of a KITTI-layout run (both trajectories start at
+/// the first frame's pose): `(metres, path length in metres)`.
+fn final_drift(gt: &Trajectory, estimate: &Trajectory) -> Option<(f64, f64)> {
+    let n = gt.len().min(estimate.len());
+    if n < 2 {
+        return None;
+    }
+    let g0 = gt.poses[0].inverse();
+    let e0 = estimate.poses[0].inverse();
+    let path: f64 = gt.poses[..n]
+        .windows(2)
+        .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+        .sum();
+    let g = (g0 * gt.poses[n - 1]).translation.vector;
+    let e = (e0 * estimate.poses[n - 1]).translation.vector;
+    Some(((g - e).norm(), path))
+}
+
+/// Evaluates the run against `gt`, appends the figures to `text` and writes
+/// the plots (`trajectory.png`, `trajectory_errors.png`) into `out`.
+fn evaluate_run(
+    source: &Source,
+    gt: &Trajectory,
+    trajectory: &Trajectory,
+    out: &Path,
+    text: &mut String,
+) -> Result<Option<EvalReport>> {
+    let pairing = if source.is_kitti() {
+        Pairing::ByIndex
+    } else {
+        Pairing::ByTimestamp {
+            max_diff: DEFAULT_MAX_DIFF,
+            one_to_one: true,
+        }
+    };
+    if source.is_kitti() {
+        if let Some((drift, path)) = final_drift(gt, trajectory) {
+            text.push_str(&format!(
+                "final-position drift {drift:.3} m over a {path:.1} m path ({:.2} %)\n",
+                100.0 * drift / path.max(f64::MIN_POSITIVE)
+            ));
+        }
+    }
+    let options = EvalOptions {
+        pairing,
+        ..EvalOptions::default()
+    };
+    let report = match evaluate(gt, trajectory, &options) {
+        Ok(report) => report,
+        Err(e) => {
+            text.push_str(&format!(
+                "ATE/RPE not computed: {e} (a straight path cannot be aligned; the drift above is unaligned)\n"
+            ));
+            return Ok(None);
+        }
+    };
+    text.push_str(&report_table(&report));
+    let pair = pair_trajectories(gt, trajectory, pairing)?;
+    // KITTI-layout runs are plotted as given (from above, x–z); EuRoC after
+    // SE3 alignment (x–y).
+    let (estimate, plane) = if source.is_kitti() {
+        (pair.estimate.clone(), PlotPlane::Xz)
+    } else {
+        (
+            align(&pair.reference, &pair.estimate, Alignment::Se3)?,
+            PlotPlane::Xy,
+        )
+    };
+    let plot = out.join("trajectory.png");
+    let errors = out.join("trajectory_errors.png");
+    write_trajectory_plot(&pair.reference, &estimate, &plot, plane)?;
+    write_error_plot(&pair.reference, &estimate, &errors)?;
+    text.push_str(&format!(
+        "plots: {} and {}\n",
+        plot.display(),
+        errors.display()
+    ));
+    Ok(Some(report))
+}
+
 pub fn run_slam(args: RunArgs) -> Result<()> {
     let source = Source::open(&args.dataset)?;
     let mut settings = match &args.settings {
@@ -336,30 +417,7 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
     let extractor = slam.extractor_name().to_string();
     let mut text = summary_text(&args.dataset, &extractor, &summary);
     let evaluation = match source.ground_truth(frames.len())? {
-        Some(gt) => {
-            let pairing = if source.is_kitti() {
-                Pairing::ByIndex
-            } else {
-                Pairing::ByTimestamp {
-                    max_diff: DEFAULT_MAX_DIFF,
-                    one_to_one: true,
-                }
-            };
-            let options = EvalOptions {
-                pairing,
-                ..EvalOptions::default()
-            };
-            match evaluate(&gt, &trajectory, &options) {
-                Ok(report) => {
-                    text.push_str(&report_table(&report));
-                    Some(report)
-                }
-                Err(e) => {
-                    text.push_str(&format!("evaluation failed: {e}\n"));
-                    None
-                }
-            }
-        }
+        Some(gt) => evaluate_run(&source, &gt, &trajectory, &args.out, &mut text)?,
         None => None,
     };
     print!("{text}");
