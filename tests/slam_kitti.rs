@@ -5,7 +5,7 @@ mod common;
 
 use spslam::dataset::KittiSequence;
 use spslam::eval::{evaluate, read_kitti, EvalOptions, Pairing, Trajectory};
-use spslam::features::{ExtractorConfig, GrayImage, SuperPointExtractor};
+use spslam::features::GrayImage;
 use spslam::settings::SlamSettings;
 use spslam::tracking::{StereoFrontend, StereoRig, StereoSlam, TrackingState};
 
@@ -23,12 +23,12 @@ fn kitti_06_excerpt_superpoint() {
     let first = GrayImage::load(&seq.frames()[0].left).unwrap_or_else(|e| panic!("{e}"));
     let rig = StereoRig::from_settings(&settings, first.width(), first.height())
         .unwrap_or_else(|e| panic!("{e}"));
-    let config = ExtractorConfig {
-        anms: settings.extractor.anms,
-        ..ExtractorConfig::default()
-    };
+    // What `spslam run` builds: SuperPoint on the settings' 8 pyramid
+    // levels, kd-tree ANMS, the paper's 20 m depth filter.
+    let config = settings
+        .extractor
+        .superpoint_config(settings.extractor.n_levels, 1);
     let sp = || Box::new(common::extractor(config.clone()));
-    let _: fn(ExtractorConfig) -> SuperPointExtractor = common::extractor;
     let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
     for (i, f) in seq.frames().iter().enumerate() {
         let l = GrayImage::load(&f.left).unwrap_or_else(|e| panic!("{e}"));

@@ -23,7 +23,7 @@ use serde::Serialize;
 pub use error::{Result, SettingsError};
 use reader::SettingsReader;
 
-use crate::features::AnmsMethod;
+use crate::features::{AnmsMethod, ExtractorConfig};
 
 /// A pinhole camera, rectified (stereo) or with radial-tangential distortion.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -85,6 +85,27 @@ impl Default for ExtractorSettings {
             anms: AnmsMethod::default(),
             model: None,
         }
+    }
+}
+
+impl ExtractorSettings {
+    /// The SuperPoint extractor these settings describe (ORB-SLAM3's
+    /// constructor mapping, on `levels` pyramid levels), with `threads`
+    /// ONNX Runtime threads.
+    pub fn superpoint_config(&self, levels: usize, threads: usize) -> ExtractorConfig {
+        let mut config = ExtractorConfig::from_orb_slam3(
+            i32::try_from(self.n_features).unwrap_or(i32::MAX),
+            self.scale_factor as f32,
+            i32::try_from(levels).unwrap_or(i32::MAX),
+            self.ini_th_fast,
+            self.min_th_fast,
+        );
+        config.anms = self.anms;
+        if let Some(model) = &self.model {
+            config.model_path = model.clone();
+        }
+        config.threads = threads.max(1);
+        config
     }
 }
 

@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use crate::features::{FeatureExtractor, GrayImageView};
+use crate::features::{FeatureExtractor, FrameFeatures, GrayImageView};
 use crate::map::StereoMeasurement;
 use crate::matching::{
     match_stereo, DistanceThresholds, PeriodicGuard, StereoImages, StereoParams,
@@ -20,6 +20,15 @@ pub struct FrontendTimings {
     pub extraction_ms: f64,
     /// Stereo matching.
     pub stereo_ms: f64,
+}
+
+/// The features of one stereo pair, before stereo matching.
+#[derive(Debug, Clone)]
+pub struct StereoFeatures {
+    /// Left image's keypoints and descriptors.
+    pub left: FrameFeatures,
+    /// Right image's.
+    pub right: FrameFeatures,
 }
 
 /// Two extractors (one per image, so both run at once) and the stereo matcher.
@@ -72,6 +81,27 @@ impl StereoFrontend {
         right_image: GrayImageView<'_>,
         rig: &StereoRig,
     ) -> Result<(Frame, FrontendTimings), SlamError> {
+        let start = Instant::now();
+        let features = self.extract(index, left_image, right_image)?;
+        let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
+        let (frame, stereo_ms) =
+            self.match_frame(index, timestamp, features, left_image, right_image, rig)?;
+        Ok((
+            frame,
+            FrontendTimings {
+                extraction_ms,
+                stereo_ms,
+            },
+        ))
+    }
+
+    /// Extracts the left and right images' features in parallel.
+    pub fn extract(
+        &mut self,
+        index: usize,
+        left_image: GrayImageView<'_>,
+        right_image: GrayImageView<'_>,
+    ) -> Result<StereoFeatures, SlamError> {
         if (left_image.width(), left_image.height()) != (right_image.width(), right_image.height())
         {
             return Err(SlamError::ImageSizeMismatch {
@@ -82,7 +112,6 @@ impl StereoFrontend {
                 right_height: right_image.height(),
             });
         }
-        let start = Instant::now();
         let (left_extractor, right_extractor) = (&mut self.left, &mut self.right);
         let (left, right) = std::thread::scope(|scope| {
             let right_job = scope.spawn(move || right_extractor.extract(right_image));
@@ -96,20 +125,34 @@ impl StereoFrontend {
             });
             (left, right)
         });
-        let left = left.map_err(|source| SlamError::Features {
-            frame: index,
-            source,
-        })?;
-        let right = right.map_err(|source| SlamError::Features {
-            frame: index,
-            source,
-        })?;
-        let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
+        let features = |r: Result<FrameFeatures, _>| {
+            r.map_err(|source| SlamError::Features {
+                frame: index,
+                source,
+            })
+        };
+        Ok(StereoFeatures {
+            left: features(left)?,
+            right: features(right)?,
+        })
+    }
+
+    /// Matches extracted features along rows into a frame (the depth filter
+    /// applied); returns it with the milliseconds spent.
+    pub fn match_frame(
+        &self,
+        index: usize,
+        timestamp: f64,
+        features: StereoFeatures,
+        left_image: GrayImageView<'_>,
+        right_image: GrayImageView<'_>,
+        rig: &StereoRig,
+    ) -> Result<(Frame, f64), SlamError> {
         let start = Instant::now();
         let scales = self.left.scale_tables().clone();
         let outcome = match_stereo(
-            &left,
-            &right,
+            &features.left,
+            &features.right,
             StereoImages {
                 left: left_image,
                 right: right_image,
@@ -130,14 +173,7 @@ impl StereoFrontend {
                     })
             })
             .collect();
-        let stereo_ms = start.elapsed().as_secs_f64() * 1e3;
-        let frame = Frame::new(index, timestamp, left, stereo, scales, rig);
-        Ok((
-            frame,
-            FrontendTimings {
-                extraction_ms,
-                stereo_ms,
-            },
-        ))
+        let frame = Frame::new(index, timestamp, features.left, stereo, scales, rig);
+        Ok((frame, start.elapsed().as_secs_f64() * 1e3))
     }
 }

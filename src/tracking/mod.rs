@@ -29,7 +29,7 @@ mod tracker;
 pub(crate) use error::MapContext;
 pub use error::SlamError;
 pub use frame::Frame;
-pub use frontend::{FrontendTimings, StereoFrontend};
+pub use frontend::{FrontendTimings, StereoFeatures, StereoFrontend};
 pub use keyframe::{
     initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext, MIN_INITIAL_KEYPOINTS,
     MIN_INITIAL_STEREO_POINTS,

@@ -13,7 +13,7 @@ use crate::mapping::{LocalMapper, MappingResult, MappingSummary, MappingThread};
 use crate::optim::{LieGroup, Se3};
 
 use super::error::SlamError;
-use super::frontend::StereoFrontend;
+use super::frontend::{StereoFeatures, StereoFrontend};
 use super::rig::StereoRig;
 use super::tracker::{Tracker, TrackingMethod, TrackingState};
 
@@ -146,6 +146,38 @@ impl StereoSlam {
         Ok(())
     }
 
+    /// Extracts a stereo pair's features (left and right in parallel)
+    /// without tracking them; see [`Self::process_features`].
+    pub fn extract(
+        &mut self,
+        index: usize,
+        left: GrayImageView<'_>,
+        right: GrayImageView<'_>,
+    ) -> Result<StereoFeatures, SlamError> {
+        self.frontend.extract(index, left, right)
+    }
+
+    /// Starts over: an empty map, tracking not initialised, no records
+    /// (ORB-SLAM3's `Reset`). Local mapping stays where it runs and keeps
+    /// its switches.
+    pub fn reset(&mut self) -> Result<(), SlamError> {
+        let threaded = matches!(self.mapping, Mapping::Thread { .. });
+        self.finish()?;
+        if let Mapping::Inline(mapper) = &mut self.mapping {
+            let mut fresh = LocalMapper::new(self.rig);
+            fresh.bundle_adjustment = mapper.bundle_adjustment;
+            fresh.keyframe_culling = mapper.keyframe_culling;
+            *mapper = fresh;
+        }
+        *self.map.write().map_err(|_| SlamError::PoisonedMap)? = Map::new();
+        self.tracker = Tracker::new(self.rig);
+        self.records.clear();
+        if threaded {
+            self.spawn_mapping_thread()?;
+        }
+        Ok(())
+    }
+
     /// Waits for local mapping to finish every queued keyframe and brings
     /// it back inline. Call before reading the final trajectory.
     pub fn finish(&mut self) -> Result<(), SlamError> {
@@ -212,10 +244,28 @@ impl StereoSlam {
         left: GrayImageView<'_>,
         right: GrayImageView<'_>,
     ) -> Result<&FrameRecord, SlamError> {
+        let start = Instant::now();
+        let features = self.frontend.extract(index, left, right)?;
+        let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.process_features(index, timestamp, features, left, right, extraction_ms)
+    }
+
+    /// Processes a stereo pair whose features were extracted already
+    /// (benchmarks time everything but extraction this way);
+    /// `extraction_ms` goes into the record.
+    pub fn process_features(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        features: StereoFeatures,
+        left: GrayImageView<'_>,
+        right: GrayImageView<'_>,
+        extraction_ms: f64,
+    ) -> Result<&FrameRecord, SlamError> {
         self.poll_mapping()?;
-        let (frame, frontend) = self
+        let (frame, stereo_ms) = self
             .frontend
-            .build_frame(index, timestamp, left, right, &self.rig)?;
+            .match_frame(index, timestamp, features, left, right, &self.rig)?;
         let stereo_points = frame.stereo_count();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),
@@ -255,8 +305,8 @@ impl StereoSlam {
             keyframe: outcome.new_keyframe.is_some(),
             relative_pose: outcome.relative_pose,
             timings: FrameTimings {
-                extraction_ms: frontend.extraction_ms,
-                stereo_ms: frontend.stereo_ms,
+                extraction_ms,
+                stereo_ms,
                 tracking_ms,
                 mapping_ms,
             },

@@ -13,8 +13,7 @@ use spslam::eval::{
     EvalReport, Pairing, PlotPlane, Trajectory, DEFAULT_MAX_DIFF,
 };
 use spslam::features::{
-    AnmsMethod, ExtractorConfig, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor,
-    SuperPointExtractor,
+    AnmsMethod, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor, SuperPointExtractor,
 };
 use spslam::optim::Se3;
 use spslam::settings::SlamSettings;
@@ -210,19 +209,9 @@ fn extractors(
             ))
         }
         ExtractorChoice::Superpoint => {
-            let mut config = ExtractorConfig::from_orb_slam3(
-                e.n_features as i32,
-                e.scale_factor as f32,
-                levels as i32,
-                e.ini_th_fast,
-                e.min_th_fast,
-            );
-            config.anms = e.anms;
-            if let Some(model) = &e.model {
-                config.model_path = model.clone();
-            }
+            // One ONNX Runtime thread pool per image; the two run in parallel.
             let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
-            config.threads = (cores / 2).max(1);
+            let config = e.superpoint_config(levels, cores / 2);
             Ok((
                 Box::new(SuperPointExtractor::new(config.clone())?),
                 Box::new(SuperPointExtractor::new(config)?),

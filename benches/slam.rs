@@ -1,0 +1,143 @@
+//! Stereo SLAM without feature extraction: stereo matching, tracking and
+//! local mapping (inline, so all of it is on the clock) over the 51 frames
+//! of the KITTI 06 excerpt at 1000 features, with the settings of
+//! `settings/KITTI04-12.yaml` (8 levels, the paper's 20 m depth filter).
+//!
+//! The features of every frame are extracted once before timing; one
+//! iteration resets the system and processes the whole excerpt, so the time
+//! per frame is the iteration time / 51. Extractors: ORB (`orb_1000`) and
+//! SuperPoint + kd-tree ANMS (`superpoint_anms_1000`, whose setup extracts
+//! 102 images on 8 levels: about three minutes on a 2-core machine).
+//!
+//! Data: `SPSLAM_DATA`, else `../shared/data` next to the crate. Without it
+//! (or without the model) the benchmark is skipped with a message.
+//! Run: `cargo bench --bench slam -- --warm-up-time 1 --measurement-time 20`.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
+use spslam::dataset::KittiSequence;
+use spslam::features::{
+    default_model_path, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor, SuperPointExtractor,
+};
+use spslam::settings::SlamSettings;
+use spslam::tracking::{StereoFeatures, StereoFrontend, StereoRig, StereoSlam, TrackingState};
+
+fn data_dir() -> PathBuf {
+    std::env::var_os("SPSLAM_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"))
+}
+
+/// The excerpt's images and settings, or why they are missing.
+struct Excerpt {
+    images: Vec<(f64, GrayImage, GrayImage)>,
+    settings: SlamSettings,
+}
+
+fn load_excerpt() -> Result<Excerpt, String> {
+    let seq = KittiSequence::open(data_dir().join("kitti"), "06").map_err(|e| e.to_string())?;
+    let settings = SlamSettings::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/settings/KITTI04-12.yaml"
+    ))
+    .map_err(|e| e.to_string())?;
+    let mut images = Vec::new();
+    for f in seq.frames() {
+        let l = GrayImage::load(&f.left).map_err(|e| e.to_string())?;
+        let r = GrayImage::load(&f.right).map_err(|e| e.to_string())?;
+        images.push((f.timestamp, l, r));
+    }
+    Ok(Excerpt { images, settings })
+}
+
+type Extractors = (Box<dyn FeatureExtractor>, Box<dyn FeatureExtractor>);
+/// Builds the left and right extractors from the settings.
+type MakeExtractors = fn(&SlamSettings) -> Result<Extractors, String>;
+
+/// A system over `extractors`, and every frame's features.
+fn prepare(
+    excerpt: &Excerpt,
+    extractors: Extractors,
+) -> Result<(StereoSlam, Vec<StereoFeatures>), String> {
+    let (w, h) = (excerpt.images[0].1.width(), excerpt.images[0].1.height());
+    let rig = StereoRig::from_settings(&excerpt.settings, w, h).map_err(|e| e.to_string())?;
+    let mut slam = StereoSlam::new(rig, StereoFrontend::new(extractors.0, extractors.1, &rig));
+    let mut features = Vec::new();
+    for (i, (_, l, r)) in excerpt.images.iter().enumerate() {
+        features.push(
+            slam.extract(i, l.view(), r.view())
+                .map_err(|e| e.to_string())?,
+        );
+    }
+    Ok((slam, features))
+}
+
+/// Resets the system and tracks the whole excerpt; panics if a frame is lost.
+fn run_excerpt(slam: &mut StereoSlam, excerpt: &Excerpt, features: &[StereoFeatures]) {
+    slam.reset().unwrap_or_else(|e| panic!("{e}"));
+    for (i, ((t, l, r), f)) in excerpt.images.iter().zip(features).enumerate() {
+        let record = slam
+            .process_features(i, *t, f.clone(), l.view(), r.view(), 0.0)
+            .unwrap_or_else(|e| panic!("frame {i}: {e}"));
+        assert!(record.state == TrackingState::Ok, "frame {i} lost");
+    }
+}
+
+fn orb(settings: &SlamSettings) -> Result<Extractors, String> {
+    let e = &settings.extractor;
+    let config = OrbConfig {
+        n_features: e.n_features,
+        scale_factor: e.scale_factor as f32,
+        n_levels: e.n_levels,
+        ini_th_fast: e.ini_th_fast,
+        min_th_fast: e.min_th_fast,
+    };
+    let make = || OrbExtractor::new(config).map_err(|e| e.to_string());
+    Ok((Box::new(make()?), Box::new(make()?)))
+}
+
+fn superpoint(settings: &SlamSettings) -> Result<Extractors, String> {
+    if !default_model_path().exists() {
+        return Err(format!("no model at {}", default_model_path().display()));
+    }
+    let config = settings
+        .extractor
+        .superpoint_config(settings.extractor.n_levels, 1);
+    let make = || SuperPointExtractor::new(config.clone()).map_err(|e| e.to_string());
+    Ok((Box::new(make()?), Box::new(make()?)))
+}
+
+fn bench_slam(c: &mut Criterion) {
+    let excerpt = match load_excerpt() {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("slam benchmark skipped: KITTI 06 excerpt unavailable ({e})");
+            return;
+        }
+    };
+    let mut group = c.benchmark_group("kitti06_excerpt_51_frames");
+    group.sampling_mode(SamplingMode::Flat);
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(20));
+    let variants: [(&str, MakeExtractors); 2] =
+        [("orb_1000", orb), ("superpoint_anms_1000", superpoint)];
+    for (name, make) in variants {
+        let prepared = make(&excerpt.settings).and_then(|x| prepare(&excerpt, x));
+        let (mut slam, features) = match prepared {
+            Ok(p) => p,
+            Err(e) => {
+                eprintln!("{name} skipped: {e}");
+                continue;
+            }
+        };
+        group.bench_function(name, |b| {
+            b.iter(|| run_excerpt(&mut slam, &excerpt, &features))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench_slam);
+criterion_main!(benches);
