@@ -39,8 +39,25 @@ pub struct MappingSummary {
     pub bundle: BundleSummary,
     /// Keyframes culled as redundant.
     pub keyframes_culled: usize,
-    /// Milliseconds spent.
+    /// Milliseconds spent, all steps.
     pub elapsed_ms: f64,
+    /// Milliseconds per step.
+    pub step_ms: MappingStepTimes,
+}
+
+/// Milliseconds spent in each local-mapping step for one keyframe.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct MappingStepTimes {
+    /// Refreshing the keyframe's points, connections, culling recent points.
+    pub process_ms: f64,
+    /// Triangulation with the covisible keyframes.
+    pub triangulation_ms: f64,
+    /// Fusion of duplicates.
+    pub fusion_ms: f64,
+    /// Local bundle adjustment.
+    pub bundle_ms: f64,
+    /// Keyframe culling.
+    pub culling_ms: f64,
 }
 
 /// The local-mapping state: the recently created points under probation.
@@ -92,16 +109,27 @@ impl LocalMapper {
         let culled: PointCullingReport =
             map.cull_recent_points(&mut self.recent_points, keyframe, MIN_STEREO_OBSERVATIONS);
         summary.points_culled = culled.low_found_ratio + culled.too_few_observations;
+        let mut lap = Instant::now();
+        let mut split = || {
+            let ms = lap.elapsed().as_secs_f64() * 1e3;
+            lap = Instant::now();
+            ms
+        };
+        summary.step_ms.process_ms = start.elapsed().as_secs_f64() * 1e3;
         let triangulated = create_new_points(map, keyframe, &self.rig)?;
         summary.points_triangulated = triangulated.len();
         self.recent_points.extend(triangulated);
+        summary.step_ms.triangulation_ms = split();
         summary.fused = fuse_with_neighbours(map, keyframe, &self.rig)?;
+        summary.step_ms.fusion_ms = split();
         if self.bundle_adjustment && map.keyframe_count() > 2 {
             summary.bundle = local_bundle_adjustment_around(map, keyframe, &self.rig)?;
         }
+        summary.step_ms.bundle_ms = split();
         if self.keyframe_culling {
             summary.keyframes_culled = self.cull_keyframes(map, keyframe)?;
         }
+        summary.step_ms.culling_ms = split();
         summary.elapsed_ms = start.elapsed().as_secs_f64() * 1e3;
         Ok(summary)
     }

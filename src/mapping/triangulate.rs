@@ -101,26 +101,45 @@ fn epipolar_matches(v1: &View, v2: &View, rig: &StereoRig) -> Vec<(usize, usize)
     let d1 = &v1.measurements.descriptors;
     let d2: &DescriptorSet = &v2.measurements.descriptors;
     let threshold = DistanceThresholds::for_kind(d1.kind()).low;
+    // v2's candidates as flat rows (the inner loop runs n1 × n2 times).
+    struct Candidate {
+        u: f64,
+        v: f64,
+        octave: i64,
+        line_threshold: f64,
+        index: usize,
+    }
+    let candidates: Vec<Candidate> = v2
+        .unmatched
+        .iter()
+        .map(|&i2| {
+            let (u, v) = v2.pixel(i2);
+            Candidate {
+                u,
+                v,
+                octave: v2.octave(i2) as i64,
+                line_threshold: 3.84 * v2.sigma2(i2),
+                index: i2,
+            }
+        })
+        .collect();
     let mut owner: Vec<Option<(usize, f32)>> = vec![None; v2.measurements.len()];
     for &i1 in &v1.unmatched {
         let (u1, w1) = v1.pixel(i1);
+        let octave1 = v1.octave(i1) as i64;
         let line = f21 * Vector3::new(u1, w1, 1.0);
         let norm2 = line.x * line.x + line.y * line.y;
         if norm2 <= 0.0 {
             continue;
         }
         let mut best = BestTwo::default();
-        for &i2 in &v2.unmatched {
-            let (u2, w2) = v2.pixel(i2);
-            let num = line.x * u2 + line.y * w2 + line.z;
-            if num * num / norm2 > 3.84 * v2.sigma2(i2) {
+        for c in &candidates {
+            let num = line.x * c.u + line.y * c.v + line.z;
+            if num * num > c.line_threshold * norm2 || (octave1 - c.octave).abs() > 1 {
                 continue;
             }
-            if (v1.octave(i1) as i64 - v2.octave(i2) as i64).abs() > 1 {
-                continue;
-            }
-            if let Some(d) = d1.distance(i1, d2, i2) {
-                best.offer(i2, d);
+            if let Some(d) = d1.distance(i1, d2, c.index) {
+                best.offer(c.index, d);
             }
         }
         if let Some((i2, d)) = best.accept(threshold, Some(RATIO)) {
