@@ -62,8 +62,18 @@ impl SyntheticRun {
 }
 
 fn run_orb_slam(scene: SceneName) -> SyntheticRun {
+    run_orb_slam_with(scene, FRAMES, false).0
+}
+
+/// Runs `frames` frames of `scene`, local mapping on its own thread when
+/// `threaded`; also returns the frame records.
+fn run_orb_slam_with(
+    scene: SceneName,
+    frames: usize,
+    threaded: bool,
+) -> (SyntheticRun, Vec<spslam::tracking::FrameRecord>) {
     let mut config = SyntheticConfig::for_scene(scene);
-    config.frames = Some(FRAMES);
+    config.frames = Some(frames);
     config.width = 480;
     config.height = 360;
     config.focal_length *= 0.75;
@@ -75,6 +85,10 @@ fn run_orb_slam(scene: SceneName) -> SyntheticRun {
     let orb =
         || Box::new(OrbExtractor::new(OrbConfig::default()).unwrap_or_else(|e| panic!("{e}")));
     let mut slam = StereoSlam::new(rig, StereoFrontend::new(orb(), orb(), &rig));
+    if threaded {
+        slam.spawn_mapping_thread()
+            .unwrap_or_else(|e| panic!("{e}"));
+    }
     let first_inverse = sequence.pose(0).inverse();
     let mut truth = Vec::with_capacity(sequence.len());
     let mut timestamps = Vec::with_capacity(sequence.len());
@@ -89,6 +103,7 @@ fn run_orb_slam(scene: SceneName) -> SyntheticRun {
         truth.push(first_inverse * frame.pose);
         timestamps.push(frame.timestamp);
     }
+    slam.finish().unwrap_or_else(|e| panic!("{e}"));
     let estimate = slam
         .trajectory()
         .unwrap_or_else(|e| panic!("{e}"))
@@ -97,7 +112,7 @@ fn run_orb_slam(scene: SceneName) -> SyntheticRun {
         .collect();
     let summary = slam.summary().unwrap_or_else(|e| panic!("{e}"));
     eprintln!("{scene:?}, ORB: {summary:?}");
-    SyntheticRun {
+    let run = SyntheticRun {
         lost: slam
             .records()
             .iter()
@@ -107,7 +122,30 @@ fn run_orb_slam(scene: SceneName) -> SyntheticRun {
         estimate,
         truth,
         timestamps,
+    };
+    (run, slam.records().to_vec())
+}
+
+#[test]
+fn local_mapping_on_its_own_thread_tracks_and_reports_every_keyframe() {
+    let (run, records) = run_orb_slam_with(SceneName::Straight, 80, true);
+    let keyframes: Vec<_> = records.iter().filter(|r| r.keyframe).collect();
+    let drift = run.final_drift_percent();
+    eprintln!(
+        "straight street, mapping thread: {} keyframes, final drift {drift:.2} %",
+        keyframes.len()
+    );
+    assert!(run.lost.is_empty(), "frames not tracked: {:?}", run.lost);
+    assert!(keyframes.len() > 5);
+    // `finish` waited for the thread: every keyframe's mapping is reported.
+    for r in &keyframes {
+        assert!(
+            r.mapping.is_some(),
+            "frame {} has no mapping summary",
+            r.index
+        );
     }
+    assert!(drift < 4.0, "final drift {drift:.2} %");
 }
 
 #[test]
