@@ -190,3 +190,76 @@ fn synthetic_block_loop_500_frames_is_tracked_throughout() {
     assert!(drift < 2.0, "final drift {drift:.2} % of the path");
     assert!(report.ate.se3_rmse < 2.0, "ATE {} m", report.ate.se3_rmse);
 }
+
+#[test]
+fn tracking_lost_on_blank_frames_recovers_by_relocalisation() {
+    let mut config = SyntheticConfig::for_scene(SceneName::Straight);
+    config.frames = Some(60);
+    config.width = 480;
+    config.height = 360;
+    config.focal_length *= 0.75;
+    let sequence = SyntheticSequence::new(config).unwrap_or_else(|e| panic!("{e}"));
+    let cam = *sequence.camera();
+    let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
+    let rig = StereoRig::from_settings(&settings, cam.width, cam.height)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let orb =
+        || Box::new(OrbExtractor::new(OrbConfig::default()).unwrap_or_else(|e| panic!("{e}")));
+    let mut slam = StereoSlam::new(rig, StereoFrontend::new(orb(), orb(), &rig));
+    // Frames 30–32 are blank (a covered lens): no features, tracking is lost.
+    let blank = 30..33;
+    for i in 0..sequence.len() {
+        let frame = sequence.render(i, false);
+        let pixels = |data: Vec<u8>| {
+            let data = if blank.contains(&i) {
+                vec![128; data.len()]
+            } else {
+                data
+            };
+            GrayImage::from_vec(data, frame.width, frame.height).unwrap_or_else(|e| panic!("{e}"))
+        };
+        let (l, r) = (pixels(frame.left.clone()), pixels(frame.right.clone()));
+        slam.process(i, frame.timestamp, l.view(), r.view())
+            .unwrap_or_else(|e| panic!("frame {i}: {e}"));
+    }
+    let records = slam.records();
+    let states: Vec<(usize, TrackingState, spslam::tracking::TrackingMethod)> = records
+        .iter()
+        .map(|r| (r.index, r.state, r.method))
+        .collect();
+    for i in blank.clone() {
+        assert_eq!(records[i].state, TrackingState::Lost, "blank frame {i}");
+    }
+    let recovered = records[blank.end..]
+        .iter()
+        .position(|r| r.method == spslam::tracking::TrackingMethod::Relocalisation)
+        .map(|k| blank.end + k);
+    eprintln!("relocalised at frame {recovered:?}");
+    let Some(recovered) = recovered else {
+        panic!("never relocalised: {states:?}");
+    };
+    assert!(
+        recovered <= blank.end + 2,
+        "relocalised only at {recovered}"
+    );
+    let lost_after: Vec<usize> = records[recovered..]
+        .iter()
+        .filter(|r| r.state != TrackingState::Ok)
+        .map(|r| r.index)
+        .collect();
+    assert!(lost_after.is_empty(), "lost again at {lost_after:?}");
+    // The relocalised pose is as good as the last one tracked before the
+    // blank frames: its error grows by less than 0.1 m across the gap.
+    let poses = slam.trajectory().unwrap_or_else(|e| panic!("{e}"));
+    let first_inverse = sequence.pose(0).inverse();
+    let error = |i: usize| {
+        let truth = first_inverse * sequence.pose(i);
+        (poses[i].1.translation - truth.translation.vector).norm()
+    };
+    let (before, after) = (error(blank.start - 1), error(recovered));
+    eprintln!("position error {before:.3} m before the gap, {after:.3} m at relocalisation");
+    assert!(
+        after < before + 0.1,
+        "relocalised {after} m off, {before} m before"
+    );
+}

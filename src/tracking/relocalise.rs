@@ -1,6 +1,8 @@
 //! Relocalisation: descriptor matches against keyframes' points, a PnP
 //! RANSAC pose (OpenCV), then pose-only refinement.
 
+use std::collections::BTreeSet;
+
 use opencv::core::{Mat, Point2f, Point3f, Vector};
 use opencv::prelude::*;
 
@@ -13,7 +15,7 @@ use super::error::{MapContext, SlamError};
 use super::frame::Frame;
 use super::pose::refine_pose;
 use super::rig::StereoRig;
-use super::search::match_descriptors;
+use super::search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
 
 /// Keyframes tried, newest first.
 const MAX_CANDIDATES: usize = 30;
@@ -75,6 +77,37 @@ pub(crate) fn pnp_ransac(
     Ok(Some(Se3::new(rotation, t)))
 }
 
+/// Searches the keyframe's points not yet matched around their projections
+/// at the frame's pose and refines again (ORB-SLAM3's second chance: window
+/// 10, then 3 when 30–49 inliers remain). Returns the inliers.
+fn widen_by_projection(
+    frame: &mut Frame,
+    map: &Map,
+    keyframe: KeyFrameId,
+    rig: &StereoRig,
+    mut inliers: usize,
+) -> Result<usize, SlamError> {
+    for (radius, at_least) in [(10.0, 10), (3.0, 30)] {
+        if inliers < at_least || inliers >= MIN_RELOCALISATION_INLIERS {
+            break;
+        }
+        let found: BTreeSet<MapPointId> = frame.map_points.iter().flatten().copied().collect();
+        let Ok(kf) = map.keyframe(keyframe) else {
+            break;
+        };
+        let visible: Vec<VisiblePoint> = kf
+            .observed_points()
+            .filter(|(_, p)| !found.contains(p))
+            .filter_map(|(_, p)| visible_in_frame(map, p, frame, rig))
+            .collect();
+        let added = match_projected(frame, map, &visible, radius, (1, 1), None)?;
+        if inliers + added >= MIN_RELOCALISATION_INLIERS {
+            inliers = refine_pose(frame, map, rig)?;
+        }
+    }
+    Ok(inliers)
+}
+
 /// ORB-SLAM3's `Relocalization` without bag-of-words: tries the newest
 /// keyframes; accepts the first pose with at least 50 inliers.
 pub fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool, SlamError> {
@@ -93,9 +126,21 @@ pub fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool,
         let points: Vec<MapPointId> = keyframe.observed_points().map(|(_, p)| p).collect();
         let matches = match_descriptors(frame, map, &points, 0.75)?;
         if matches.len() < 15 {
+            tracing::trace!(
+                frame = frame.index,
+                keyframe = kf.0,
+                matches = matches.len(),
+                "relocalisation: too few matches"
+            );
             continue;
         }
         let Some(pose) = pnp_ransac(frame, map, &matches, rig)? else {
+            tracing::trace!(
+                frame = frame.index,
+                keyframe = kf.0,
+                matches = matches.len(),
+                "relocalisation: PnP failed"
+            );
             continue;
         };
         frame.pose_cw = pose;
@@ -103,7 +148,18 @@ pub fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool,
         for (i, p) in &matches {
             frame.map_points[*i] = Some(*p);
         }
-        if refine_pose(frame, map, rig)? >= MIN_RELOCALISATION_INLIERS {
+        let mut inliers = refine_pose(frame, map, rig)?;
+        if (10..MIN_RELOCALISATION_INLIERS).contains(&inliers) {
+            inliers = widen_by_projection(frame, map, kf, rig, inliers)?;
+        }
+        tracing::trace!(
+            frame = frame.index,
+            keyframe = kf.0,
+            matches = matches.len(),
+            inliers,
+            "relocalisation: refined"
+        );
+        if inliers >= MIN_RELOCALISATION_INLIERS {
             frame.reference_keyframe = Some(kf);
             return Ok(true);
         }
