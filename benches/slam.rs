@@ -21,8 +21,11 @@ use spslam::dataset::KittiSequence;
 use spslam::features::{
     default_model_path, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor, SuperPointExtractor,
 };
+use spslam::mapping::MappingStepTimes;
 use spslam::settings::SlamSettings;
-use spslam::tracking::{StereoFeatures, StereoFrontend, StereoRig, StereoSlam, TrackingState};
+use spslam::tracking::{
+    FrameRecord, StereoFeatures, StereoFrontend, StereoRig, StereoSlam, TrackingState,
+};
 
 fn data_dir() -> PathBuf {
     std::env::var_os("SPSLAM_DATA")
@@ -85,6 +88,28 @@ fn run_excerpt(slam: &mut StereoSlam, excerpt: &Excerpt, features: &[StereoFeatu
     }
 }
 
+/// Prints one run's mean milliseconds per frame by stage and mapping step.
+fn print_breakdown(name: &str, records: &[FrameRecord]) {
+    let n = records.len().max(1) as f64;
+    let sum = |f: &dyn Fn(&FrameRecord) -> f64| records.iter().map(f).sum::<f64>() / n;
+    let step = |f: &dyn Fn(&MappingStepTimes) -> f64| {
+        sum(&|r: &FrameRecord| r.mapping.as_ref().map_or(0.0, |m| f(&m.step_ms)))
+    };
+    eprintln!(
+        "{name}: {} keyframes / {} frames; ms per frame: stereo {:.2}, tracking {:.2}, mapping {:.2} \
+         (triangulation {:.2}, fusion {:.2}, local BA {:.2}, culling {:.2})",
+        records.iter().filter(|r| r.keyframe).count(),
+        records.len(),
+        sum(&|r: &FrameRecord| r.timings.stereo_ms),
+        sum(&|r: &FrameRecord| r.timings.tracking_ms),
+        sum(&|r: &FrameRecord| r.timings.mapping_ms),
+        step(&|s: &MappingStepTimes| s.triangulation_ms),
+        step(&|s: &MappingStepTimes| s.fusion_ms),
+        step(&|s: &MappingStepTimes| s.bundle_ms),
+        step(&|s: &MappingStepTimes| s.culling_ms),
+    );
+}
+
 fn orb(settings: &SlamSettings) -> Result<Extractors, String> {
     let e = &settings.extractor;
     let config = OrbConfig {
@@ -132,6 +157,8 @@ fn bench_slam(c: &mut Criterion) {
                 continue;
             }
         };
+        run_excerpt(&mut slam, &excerpt, &features);
+        print_breakdown(name, slam.records());
         group.bench_function(name, |b| {
             b.iter(|| run_excerpt(&mut slam, &excerpt, &features))
         });
