@@ -234,7 +234,20 @@ struct RunReport<'a> {
     settings: &'a SlamSettings,
     summary: &'a SlamSummary,
     evaluation: Option<&'a EvalReport>,
+    /// Final-position drift (KITTI-layout runs with ground truth).
+    drift: Option<Drift>,
     frames: &'a [spslam::tracking::FrameRecord],
+}
+
+/// The end of a run against the ground truth, both starting at frame 0's pose.
+#[derive(serde::Serialize)]
+struct Drift {
+    /// Distance between the final positions, metres.
+    final_position_m: f64,
+    /// Ground-truth path length, metres.
+    path_m: f64,
+    /// `final_position_m` as a percentage of `path_m`.
+    percent: f64,
 }
 
 fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
@@ -260,8 +273,8 @@ fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
 }
 
 /// Final-position drift of a KITTI-layout run (both trajectories start at
-/// the first frame's pose): `(metres, path length in metres)`.
-fn final_drift(gt: &Trajectory, estimate: &Trajectory) -> Option<(f64, f64)> {
+/// the first frame's pose).
+fn final_drift(gt: &Trajectory, estimate: &Trajectory) -> Option<Drift> {
     let n = gt.len().min(estimate.len());
     if n < 2 {
         return None;
@@ -274,7 +287,12 @@ fn final_drift(gt: &Trajectory, estimate: &Trajectory) -> Option<(f64, f64)> {
         .sum();
     let g = (g0 * gt.poses[n - 1]).translation.vector;
     let e = (e0 * estimate.poses[n - 1]).translation.vector;
-    Some(((g - e).norm(), path))
+    let final_position_m = (g - e).norm();
+    Some(Drift {
+        final_position_m,
+        path_m: path,
+        percent: 100.0 * final_position_m / path.max(f64::MIN_POSITIVE),
+    })
 }
 
 /// Evaluates the run against `gt`, appends the figures to `text` and writes
@@ -285,7 +303,7 @@ fn evaluate_run(
     trajectory: &Trajectory,
     out: &Path,
     text: &mut String,
-) -> Result<Option<EvalReport>> {
+) -> Result<(Option<EvalReport>, Option<Drift>)> {
     let pairing = if source.is_kitti() {
         Pairing::ByIndex
     } else {
@@ -294,13 +312,16 @@ fn evaluate_run(
             one_to_one: true,
         }
     };
-    if source.is_kitti() {
-        if let Some((drift, path)) = final_drift(gt, trajectory) {
-            text.push_str(&format!(
-                "final-position drift {drift:.3} m over a {path:.1} m path ({:.2} %)\n",
-                100.0 * drift / path.max(f64::MIN_POSITIVE)
-            ));
-        }
+    let drift = if source.is_kitti() {
+        final_drift(gt, trajectory)
+    } else {
+        None
+    };
+    if let Some(d) = &drift {
+        text.push_str(&format!(
+            "final-position drift {:.3} m over a {:.1} m path ({:.2} %)\n",
+            d.final_position_m, d.path_m, d.percent
+        ));
     }
     let options = EvalOptions {
         pairing,
@@ -312,7 +333,7 @@ fn evaluate_run(
             text.push_str(&format!(
                 "ATE/RPE not computed: {e} (a straight path cannot be aligned; the drift above is unaligned)\n"
             ));
-            return Ok(None);
+            return Ok((None, drift));
         }
     };
     text.push_str(&report_table(&report));
@@ -336,7 +357,7 @@ fn evaluate_run(
         plot.display(),
         errors.display()
     ));
-    Ok(Some(report))
+    Ok((Some(report), drift))
 }
 
 pub fn run_slam(args: RunArgs) -> Result<()> {
@@ -405,9 +426,9 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
     let summary = slam.summary()?;
     let extractor = slam.extractor_name().to_string();
     let mut text = summary_text(&args.dataset, &extractor, &summary);
-    let evaluation = match source.ground_truth(frames.len())? {
+    let (evaluation, drift) = match source.ground_truth(frames.len())? {
         Some(gt) => evaluate_run(&source, &gt, &trajectory, &args.out, &mut text)?,
-        None => None,
+        None => (None, None),
     };
     print!("{text}");
     std::fs::write(args.out.join("report.txt"), &text)?;
@@ -417,6 +438,7 @@ pub fn run_slam(args: RunArgs) -> Result<()> {
         settings: &settings,
         summary: &summary,
         evaluation: evaluation.as_ref(),
+        drift,
         frames: slam.records(),
     };
     let json = args.out.join("report.json");
