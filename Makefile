@@ -54,7 +54,7 @@ include cpp_shim/cpp.mk
 test: lint test-rust test-python cpp-test
 
 bench: build
-	$(CARGO) bench --bench anms --bench extractor
+	$(CARGO) bench --bench anms --bench extractor --bench slam
 
 # Regenerates include/spslam.h from src/ffi.rs.
 header:
