@@ -17,15 +17,15 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
+use spslam::camera::StereoRig;
 use spslam::dataset::KittiSequence;
 use spslam::features::{
     default_model_path, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor, SuperPointExtractor,
 };
 use spslam::mapping::MappingStepTimes;
 use spslam::settings::SlamSettings;
-use spslam::tracking::{
-    FrameRecord, StereoFeatures, StereoFrontend, StereoRig, StereoSlam, TrackingState,
-};
+use spslam::system::{FrameRecord, StereoSlam};
+use spslam::tracking::{StereoFeatures, StereoFrontend, TrackingState};
 
 fn data_dir() -> PathBuf {
     std::env::var_os("SPSLAM_DATA")

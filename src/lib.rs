@@ -3,10 +3,15 @@
 //! SuperPoint-SLAM3 rebuilt in Rust. This crate ships:
 //! - [`features`]: the SuperPoint + ANMS feature extractor (ONNX Runtime), with
 //!   ORB-SLAM3's pyramid and scale-table semantics, and OpenCV's ORB as a reference;
-//! - `ffi`: a C ABI over the extractor (see `include/spslam.h`).
+//! - `ffi`: a C ABI over the extractor (see `include/spslam.h`);
+//! - the SLAM core, bottom up: [`map`], [`camera`], [`tracking`] and
+//!   [`mapping`] (which never import each other's layers above), and
+//!   [`system`], which drives them over an atlas of maps.
 #![warn(missing_docs)]
 
+pub mod camera;
 pub mod dataset;
+pub mod error;
 pub mod eval;
 pub mod features;
 pub mod ffi;
@@ -15,4 +20,5 @@ pub mod mapping;
 pub mod matching;
 pub mod optim;
 pub mod settings;
+pub mod system;
 pub mod tracking;

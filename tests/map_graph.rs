@@ -4,6 +4,7 @@
 //! fusion, culling, representative descriptors and sharing across threads.
 
 use std::collections::BTreeSet;
+use std::time::{Duration, Instant};
 
 use nalgebra::{UnitQuaternion, Vector3};
 use proptest::prelude::*;
@@ -55,22 +56,6 @@ fn pose(x: f64) -> Se3 {
 
 fn descriptor() -> PointDescriptor {
     PointDescriptor::Float(vec![0.0; DIM].into_boxed_slice())
-}
-
-/// Checks that every keyframe slot and every point observation agree.
-fn assert_consistent(map: &Map) {
-    for kf in map.keyframes() {
-        for (index, point) in kf.observed_points() {
-            let p = map.map_point(point).expect("slot refers to a live point");
-            assert_eq!(p.observations().get(&kf.id()), Some(&index));
-        }
-    }
-    for p in map.map_points() {
-        for (kf, index) in p.observations() {
-            let kf = map.keyframe(*kf).expect("observation by a live keyframe");
-            assert_eq!(kf.map_point(*index), Some(p.id()));
-        }
-    }
 }
 
 /// A chain of keyframes: keyframe k creates `points_per_kf / (overlap + 1)`
@@ -127,7 +112,7 @@ fn brute_force_shared(map: &Map, a: KeyFrameId, b: KeyFrameId) -> usize {
 #[test]
 fn covisibility_weights_equal_brute_force_counts() {
     let (map, ids) = chain_map(6, 60, 2);
-    assert_consistent(&map);
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
     for &a in &ids {
         for &b in &ids {
             if a != b {
@@ -167,7 +152,7 @@ fn spanning_tree_survives_keyframe_removal() {
     let pose_before = map.keyframe(ids[3]).expect("kf").pose_cw();
     map.erase_keyframe(ids[3]).expect("erase");
     assert!(map.keyframe(ids[3]).is_err());
-    assert_consistent(&map);
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
     // Every live keyframe still reaches the root, without cycles.
     for kf in map.keyframes() {
         let mut current = kf.id();
@@ -214,7 +199,7 @@ fn points_left_with_two_observations_are_erased_and_stereo_counts_twice() {
     map.erase_observation(p, c).expect("erase c");
     assert!(map.map_point(p).is_err(), "two observations left: erased");
     assert_eq!(map.keyframe(a).expect("a").map_point(0), None);
-    assert_consistent(&map);
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
 }
 
 #[test]
@@ -292,7 +277,7 @@ fn fusion_merges_observations_and_redirects_the_old_id() {
     assert_eq!(map.keyframe(kfs[1]).expect("kf1").map_point(1), None);
     assert_eq!(map.resolve_point(old), Some(new));
     assert_eq!(merged.visible, 2);
-    assert_consistent(&map);
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
 }
 
 #[test]
@@ -382,7 +367,7 @@ fn recent_points_culling_follows_orb_slam3() {
             map.add_observation(p, *kf, index).expect("observe");
         }
     }
-    map.map_point_mut(weak).expect("weak").visible = 10; // found 1 of 10
+    map.map_point_mut(weak).expect("weak").visible.set(10); // found 1 of 10
     let mut recent = vec![weak, lonely, good, young];
     let report = map.cull_recent_points(&mut recent, kfs[3], 2);
     assert_eq!(report.low_found_ratio, 1);
@@ -438,14 +423,50 @@ fn tracking_and_mapping_threads_share_the_map() {
             }
         })
     };
-    let mut max_seen = 0;
-    while max_seen < 50 {
-        let map = shared.read().expect("lock");
-        assert_consistent(&map);
-        assert_eq!(map.map_point_count(), 20 * map.keyframe_count());
-        max_seen = map.keyframe_count();
+    // The reader fails instead of spinning when the writer dies early (its
+    // panic is re-raised here) or the 50 keyframes take implausibly long.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    loop {
+        // Sampled before reading, so a writer that is done has finished writing.
+        let writer_done = writer.is_finished();
+        let seen = match shared.read() {
+            Ok(map) => {
+                map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+                assert_eq!(map.map_point_count(), 20 * map.keyframe_count());
+                map.keyframe_count()
+            }
+            // Poisoned: the writer panicked while holding the lock.
+            Err(_) => join_writer(writer, "poisoned the map lock"),
+        };
+        if seen >= 50 {
+            break;
+        }
+        if writer_done {
+            join_writer(writer, &format!("stopped after {seen} keyframes"));
+        }
+        assert!(
+            Instant::now() < deadline,
+            "the reader saw only {seen} of 50 keyframes within 60 s"
+        );
+        std::thread::yield_now();
     }
     writer.join().expect("writer thread");
+}
+
+/// Joins a writer thread that ended early and fails the test with its panic
+/// message (or with `what` when it returned normally).
+fn join_writer(writer: std::thread::JoinHandle<()>, what: &str) -> ! {
+    match writer.join() {
+        Ok(()) => panic!("the writer thread {what} without panicking"),
+        Err(payload) => {
+            let message = payload
+                .downcast_ref::<&str>()
+                .copied()
+                .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+                .unwrap_or("(non-string panic payload)");
+            panic!("the writer thread {what}: it panicked with: {message}")
+        }
+    }
 }
 
 /// Random edit sequences keep both sides of every association consistent.
@@ -496,10 +517,21 @@ proptest! {
                 Edit::Fuse { old, new } => map.replace_map_point(points[old], points[new]),
                 Edit::EraseKeyFrame { kf } => map.erase_keyframe(kfs[kf]),
             };
-            for kf in map.keyframes().map(|k| k.id()).collect::<Vec<_>>() {
-                map.update_connections(kf);
+            let live: Vec<KeyFrameId> = map.keyframes().map(|k| k.id()).collect();
+            for kf in &live {
+                map.update_connections(*kf);
             }
-            assert_consistent(&map);
+            prop_assert_eq!(map.check_invariants(), Ok(()));
+            // With every keyframe's connections just recomputed, the weights
+            // are the exact shared-point counts, and so symmetric (between
+            // updates they may be stale: see `Map::check_invariants`).
+            for &a in &live {
+                for &b in &live {
+                    if a != b {
+                        prop_assert_eq!(map.covisibility_weight(a, b), brute_force_shared(&map, a, b));
+                    }
+                }
+            }
         }
     }
 }

@@ -6,11 +6,13 @@
 mod common;
 
 use opencv::imgcodecs;
+use spslam::camera::StereoRig;
 use spslam::dataset::{EurocSequence, StereoRectifier};
 use spslam::eval::{evaluate, read_euroc, EvalOptions, Pairing, Trajectory};
 use spslam::features::{ExtractorConfig, GrayImage};
 use spslam::settings::SlamSettings;
-use spslam::tracking::{StereoFrontend, StereoRig, StereoSlam, TrackingState};
+use spslam::system::StereoSlam;
+use spslam::tracking::{StereoFrontend, TrackingState};
 
 fn read_gray(path: &std::path::Path) -> opencv::core::Mat {
     let text = path.to_str().unwrap_or_else(|| panic!("non-UTF-8 path"));

@@ -3,11 +3,13 @@
 
 mod common;
 
+use spslam::camera::StereoRig;
 use spslam::dataset::KittiSequence;
 use spslam::eval::{evaluate, read_kitti, EvalOptions, Pairing, Trajectory};
 use spslam::features::GrayImage;
 use spslam::settings::SlamSettings;
-use spslam::tracking::{StereoFrontend, StereoRig, StereoSlam, TrackingState};
+use spslam::system::StereoSlam;
+use spslam::tracking::{StereoFrontend, TrackingState};
 
 #[test]
 fn kitti_06_excerpt_superpoint() {

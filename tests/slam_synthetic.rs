@@ -8,11 +8,13 @@
 //! runs through `spslam run`.
 
 use nalgebra::Isometry3;
+use spslam::camera::StereoRig;
 use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticSequence};
 use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
 use spslam::features::{GrayImage, OrbConfig, OrbExtractor};
 use spslam::settings::SlamSettings;
-use spslam::tracking::{StereoFrontend, StereoRig, StereoSlam, TrackingState};
+use spslam::system::StereoSlam;
+use spslam::tracking::{StereoFrontend, TrackingState};
 
 /// Frames per sequence (10 m/s at 10 fps: 500 m).
 const FRAMES: usize = 500;
@@ -71,7 +73,7 @@ fn run_orb_slam_with(
     scene: SceneName,
     frames: usize,
     threaded: bool,
-) -> (SyntheticRun, Vec<spslam::tracking::FrameRecord>) {
+) -> (SyntheticRun, Vec<spslam::system::FrameRecord>) {
     let mut config = SyntheticConfig::for_scene(scene);
     config.frames = Some(frames);
     config.width = 480;

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 
 use nalgebra::Vector3;
 
+use super::counter::Counter;
 use super::descriptor::PointDescriptor;
 use super::ids::{KeyFrameId, MapPointId};
 
@@ -28,10 +29,11 @@ pub struct MapPoint {
     pub min_distance: f64,
     /// Largest distance at which the point is expected to be detected.
     pub max_distance: f64,
-    /// Times it was predicted visible in a tracked frame (ORB-SLAM3's `mnVisible`).
-    pub visible: u32,
-    /// Times it was then matched (ORB-SLAM3's `mnFound`).
-    pub found: u32,
+    /// Times it was predicted visible in a tracked frame (ORB-SLAM3's
+    /// `mnVisible`); tracking bumps it under the map's read lock.
+    pub visible: Counter,
+    /// Times it was then matched (ORB-SLAM3's `mnFound`); bumped like `visible`.
+    pub found: Counter,
     /// Observation count, stereo observations counting twice (ORB-SLAM3's `nObs`).
     pub(super) weighted_observations: usize,
 }
@@ -53,8 +55,8 @@ impl MapPoint {
             normal: Vector3::zeros(),
             min_distance: 0.0,
             max_distance: f64::INFINITY,
-            visible: 1,
-            found: 1,
+            visible: Counter::new(1),
+            found: Counter::new(1),
             weighted_observations: 0,
         }
     }
@@ -76,7 +78,7 @@ impl MapPoint {
 
     /// `found / visible` (ORB-SLAM3's `GetFoundRatio`).
     pub fn found_ratio(&self) -> f64 {
-        f64::from(self.found) / f64::from(self.visible.max(1))
+        f64::from(self.found.get()) / f64::from(self.visible.get().max(1))
     }
 
     /// The pyramid level at which the point should appear from `distance`

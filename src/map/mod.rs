@@ -13,11 +13,13 @@
 //! steps (triangulation, fusion, applying a BA result, culling). The borrow
 //! checker rules out data races, and no `unsafe` is involved.
 
+mod counter;
 mod covisibility;
 mod culling;
 mod descriptor;
 mod error;
 mod ids;
+mod invariants;
 mod keyframe;
 mod map_point;
 
@@ -26,11 +28,13 @@ use std::sync::{Arc, RwLock};
 
 use nalgebra::Vector3;
 
+pub use counter::Counter;
 pub use covisibility::COVISIBILITY_THRESHOLD;
 pub use culling::{PointCullingReport, MIN_FOUND_RATIO, REDUNDANT_FRACTION};
 pub use descriptor::{most_representative, PointDescriptor};
 pub use error::{MapError, Result};
 pub use ids::{KeyFrameId, MapPointId};
+pub use invariants::InvariantViolation;
 pub use keyframe::{FrameMeasurements, KeyFrame, StereoMeasurement};
 pub use map_point::MapPoint;
 
@@ -250,8 +254,8 @@ impl Map {
             }
         }
         if let Some(p) = self.points.get_mut(&new) {
-            p.visible += old_point.visible;
-            p.found += old_point.found;
+            p.visible.add(old_point.visible.get());
+            p.found.add(old_point.found.get());
         }
         self.replaced.insert(old, new);
         self.update_descriptor(new);

@@ -1,14 +1,17 @@
 //! Local bundle adjustment over a keyframe and its covisible neighbours,
-//! with the other keyframes observing the points held fixed.
+//! with the other keyframes observing the points held fixed, in three
+//! steps: snapshot (read lock), solve (no lock), apply (write lock).
 
 use std::collections::{BTreeMap, BTreeSet};
+use std::sync::atomic::AtomicBool;
 
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::local_ba::{
-    local_bundle_adjustment, BaObservation, BundleProblem, LocalBaConfig,
+    local_bundle_adjustment_abortable, BaObservation, BundleProblem, LocalBaConfig, Termination,
 };
 use crate::optim::reprojection::Observation;
-use crate::tracking::{MapContext, SlamError, StereoRig};
 
 /// Local keyframes at most (beyond the new one).
 const MAX_LOCAL_KEYFRAMES: usize = 20;
@@ -26,6 +29,8 @@ pub struct BundleSummary {
     pub points: usize,
     /// Observations erased as outliers.
     pub outliers_erased: usize,
+    /// Whether tracking's new keyframe aborted it early.
+    pub aborted: bool,
 }
 
 fn keyframe_observation(map: &Map, kf: KeyFrameId, index: usize) -> Option<Observation> {
@@ -44,12 +49,27 @@ fn keyframe_observation(map: &Map, kf: KeyFrameId, index: usize) -> Option<Obser
     })
 }
 
-/// Runs local BA around `keyframe` and writes the result into the map.
-pub fn local_bundle_adjustment_around(
-    map: &mut Map,
+/// A local BA problem built from a map snapshot, with the ids needed to
+/// write its solution back.
+pub(crate) struct BundleSnapshot {
+    problem: BundleProblem,
+    /// Keyframe → pose index in the problem.
+    pose_index: BTreeMap<KeyFrameId, usize>,
+    /// Point index in the problem → map point.
+    points: Vec<MapPointId>,
+    /// Observation index in the problem → (point, keyframe).
+    links: Vec<(MapPointId, KeyFrameId)>,
+    local_keyframes: usize,
+    fixed_keyframes: usize,
+}
+
+/// Snapshot: builds the local BA problem around `keyframe` (read only;
+/// the problem is a detached copy). `None` when there is nothing to optimise.
+pub(crate) fn snapshot_bundle(
+    map: &Map,
     keyframe: KeyFrameId,
     rig: &StereoRig,
-) -> Result<BundleSummary, SlamError> {
+) -> Option<BundleSnapshot> {
     let first = map.keyframes().next().map(|k| k.id());
     let mut local = vec![keyframe];
     local.extend(map.best_covisible(keyframe, MAX_LOCAL_KEYFRAMES));
@@ -95,7 +115,7 @@ pub fn local_bundle_adjustment_around(
     let mut positions = Vec::with_capacity(points.len());
     for (pi, p) in points.iter().enumerate() {
         let Ok(point) = map.map_point(*p) else {
-            continue;
+            return None;
         };
         positions.push(point.position);
         for (kf, index) in point.observations() {
@@ -112,46 +132,100 @@ pub fn local_bundle_adjustment_around(
             links.push((*p, *kf));
         }
     }
-    if observations.is_empty() || positions.len() != points.len() {
-        return Ok(BundleSummary::default());
+    if observations.is_empty() {
+        return None;
     }
-    let mut problem = BundleProblem {
-        camera: rig.camera,
-        poses,
-        fixed,
-        points: positions,
-        observations,
-    };
-    let report = local_bundle_adjustment(&mut problem, &LocalBaConfig::default())
-        .in_stage("local bundle adjustment")?;
-    for (kf, &i) in &pose_index {
+    Some(BundleSnapshot {
+        problem: BundleProblem {
+            camera: rig.camera,
+            poses,
+            fixed,
+            points: positions,
+            observations,
+        },
+        pose_index,
+        points,
+        links,
+        local_keyframes: local_set.len(),
+        fixed_keyframes: fixed_set.len(),
+    })
+}
+
+/// A solved local BA, ready to be applied.
+pub(crate) struct SolvedBundle {
+    snapshot: BundleSnapshot,
+    outliers: Vec<usize>,
+    /// Whether the abort flag cut the solve short.
+    pub aborted: bool,
+}
+
+/// Solve: runs the optimiser on the detached problem (no lock needed),
+/// stopping after the current iteration when `abort` is raised.
+pub(crate) fn solve_bundle(
+    mut snapshot: BundleSnapshot,
+    abort: &AtomicBool,
+) -> Result<SolvedBundle, SlamError> {
+    let report = local_bundle_adjustment_abortable(
+        &mut snapshot.problem,
+        &LocalBaConfig::default(),
+        Some(abort),
+    )
+    .in_stage("local bundle adjustment")?;
+    let aborted = [report.first_stage, report.second_stage]
+        .iter()
+        .any(|s| s.termination == Termination::Aborted);
+    Ok(SolvedBundle {
+        snapshot,
+        outliers: report.outliers,
+        aborted,
+    })
+}
+
+/// Apply: writes the solution into the map. Keyframes and points culled or
+/// fused since the snapshot are skipped; outlier observations are erased
+/// only where they still exist.
+pub(crate) fn apply_bundle(
+    map: &mut Map,
+    solved: SolvedBundle,
+) -> Result<BundleSummary, SlamError> {
+    let SolvedBundle {
+        snapshot,
+        outliers,
+        aborted,
+    } = solved;
+    let problem = &snapshot.problem;
+    for (kf, &i) in &snapshot.pose_index {
         if !problem.fixed[i] {
             if let Ok(k) = map.keyframe_mut(*kf) {
                 k.set_pose_cw(problem.poses[i]);
             }
         }
     }
-    for (p, position) in points.iter().zip(&problem.points) {
+    for (p, position) in snapshot.points.iter().zip(&problem.points) {
         if let Ok(point) = map.map_point_mut(*p) {
             point.position = *position;
         }
     }
     let mut erased = 0;
-    for &o in &report.outliers {
-        if let Some(&(p, kf)) = links.get(o) {
-            if map.map_point(p).is_ok() {
+    for &o in &outliers {
+        if let Some(&(p, kf)) = snapshot.links.get(o) {
+            if map
+                .map_point(p)
+                .is_ok_and(|point| point.observations().contains_key(&kf))
+            {
                 map.erase_observation(p, kf).in_stage("BA outliers")?;
                 erased += 1;
             }
         }
     }
-    for p in &points {
+    for p in &snapshot.points {
         map.update_normal_and_depth(*p);
     }
     Ok(BundleSummary {
-        local_keyframes: local_set.len(),
-        fixed_keyframes: fixed_set.len(),
-        points: points.len(),
+        local_keyframes: snapshot.local_keyframes,
+        fixed_keyframes: snapshot.fixed_keyframes,
+        points: snapshot.points.len(),
         outliers_erased: erased,
+        aborted,
     })
 }

@@ -3,11 +3,12 @@
 
 use std::collections::BTreeSet;
 
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::matching::{DistanceThresholds, KeypointGrid};
 use crate::optim::reprojection::{CHI2_MONO_95, CHI2_STEREO_95};
 use crate::optim::LieGroup;
-use crate::tracking::{MapContext, SlamError, StereoRig};
 
 /// Search window at octave 0, pixels (ORB-SLAM3's `th = 3`).
 const FUSE_RADIUS: f32 = 3.0;
@@ -85,63 +86,50 @@ fn fuse_candidate(
     best.map(|(i, _)| i)
 }
 
-/// Projects `points` into `target`: a point landing on a keypoint with a
-/// point is fused with it (the one with more observations survives),
-/// otherwise it gains the observation. Returns how many were fused or added.
-fn fuse_into(
-    map: &mut Map,
+/// A fusion found on a snapshot: `point` projects onto keypoint `index`
+/// of `target`.
+pub(crate) struct FusionCandidate {
+    target: KeyFrameId,
+    point: MapPointId,
+    index: usize,
+}
+
+/// The candidates of `points` projected into `target` (read only).
+fn candidates_in(
+    map: &Map,
     target: KeyFrameId,
     points: &[MapPointId],
     rig: &StereoRig,
-) -> Result<usize, SlamError> {
+    out: &mut Vec<FusionCandidate>,
+) {
     let Ok(kf) = map.keyframe(target) else {
-        return Ok(0);
+        return;
     };
     let grid = KeypointGrid::new(&kf.measurements.keypoints, rig.width, rig.height);
-    let mut changed = 0;
     for &point in points {
-        let Some(point) = map.resolve_point(point) else {
-            continue;
-        };
         let already = map
             .map_point(point)
             .is_ok_and(|p| p.observations().contains_key(&target));
         if already {
             continue;
         }
-        let Some(index) = fuse_candidate(map, target, &grid, point, rig) else {
-            continue;
-        };
-        let existing = map.keyframe(target).ok().and_then(|k| k.map_point(index));
-        match existing {
-            Some(other) if other != point => {
-                let count = |id| map.map_point(id).map_or(0, |p| p.observation_count());
-                if count(other) > count(point) {
-                    map.replace_map_point(point, other).in_stage("fusion")?;
-                } else {
-                    map.replace_map_point(other, point).in_stage("fusion")?;
-                }
-                changed += 1;
-            }
-            Some(_) => {}
-            None => {
-                map.add_observation(point, target, index)
-                    .in_stage("fusion")?;
-                changed += 1;
-            }
+        if let Some(index) = fuse_candidate(map, target, &grid, point, rig) {
+            out.push(FusionCandidate {
+                target,
+                point,
+                index,
+            });
         }
     }
-    Ok(changed)
 }
 
-/// Fuses `keyframe`'s points with those of its neighbours (10 best
-/// covisible and their 5 best), both ways, then refreshes descriptors,
-/// normals and connections. Returns the fusions and additions made.
-pub fn fuse_with_neighbours(
-    map: &mut Map,
+/// Compute: `keyframe`'s points projected into its neighbours (10 best
+/// covisible and their 5 best), and theirs into it (read only).
+pub(crate) fn plan_fusion(
+    map: &Map,
     keyframe: KeyFrameId,
     rig: &StereoRig,
-) -> Result<usize, SlamError> {
+) -> Vec<FusionCandidate> {
     let mut targets: BTreeSet<KeyFrameId> = BTreeSet::new();
     for n in map.best_covisible(keyframe, 10) {
         targets.insert(n);
@@ -154,18 +142,65 @@ pub fn fuse_with_neighbours(
         .keyframe(keyframe)
         .map(|k| k.observed_points().map(|(_, p)| p).collect())
         .unwrap_or_default();
-    let mut changed = 0;
+    let mut planned = Vec::new();
     for target in &targets {
-        changed += fuse_into(map, *target, &own, rig)?;
+        candidates_in(map, *target, &own, rig, &mut planned);
     }
-    let mut candidates: BTreeSet<MapPointId> = BTreeSet::new();
+    let mut theirs: BTreeSet<MapPointId> = BTreeSet::new();
     for target in &targets {
         if let Ok(kf) = map.keyframe(*target) {
-            candidates.extend(kf.observed_points().map(|(_, p)| p));
+            theirs.extend(kf.observed_points().map(|(_, p)| p));
         }
     }
-    let candidates: Vec<MapPointId> = candidates.into_iter().collect();
-    changed += fuse_into(map, keyframe, &candidates, rig)?;
+    let theirs: Vec<MapPointId> = theirs.into_iter().collect();
+    candidates_in(map, keyframe, &theirs, rig, &mut planned);
+    planned
+}
+
+/// Apply: a candidate landing on a keypoint with another point fuses the
+/// two (the one with more observations survives, ORB-SLAM3's `Replace`),
+/// one landing on a free keypoint gains the observation. Ids are resolved
+/// again (earlier fusions, or local mapping's culling since the snapshot).
+/// Then `keyframe`'s points and connections are refreshed. Returns how
+/// many fusions and additions were made.
+pub(crate) fn apply_fusion(
+    map: &mut Map,
+    keyframe: KeyFrameId,
+    planned: Vec<FusionCandidate>,
+) -> Result<usize, SlamError> {
+    let mut changed = 0;
+    for c in planned {
+        let Some(point) = map.resolve_point(c.point) else {
+            continue;
+        };
+        let Ok(target) = map.keyframe(c.target) else {
+            continue;
+        };
+        if c.index >= target.measurements.len()
+            || map
+                .map_point(point)
+                .is_ok_and(|p| p.observations().contains_key(&c.target))
+        {
+            continue;
+        }
+        match target.map_point(c.index) {
+            Some(other) if other != point => {
+                let count = |id| map.map_point(id).map_or(0, |p| p.observation_count());
+                if count(other) > count(point) {
+                    map.replace_map_point(point, other).in_stage("fusion")?;
+                } else {
+                    map.replace_map_point(other, point).in_stage("fusion")?;
+                }
+                changed += 1;
+            }
+            Some(_) => {}
+            None => {
+                map.add_observation(point, c.target, c.index)
+                    .in_stage("fusion")?;
+                changed += 1;
+            }
+        }
+    }
     let own: Vec<MapPointId> = map
         .keyframe(keyframe)
         .map(|k| k.observed_points().map(|(_, p)| p).collect())

@@ -3,25 +3,29 @@
 //! covisible keyframes, fuse duplicates, run local bundle adjustment and
 //! cull redundant keyframes.
 //!
-//! [`LocalMapper::process_keyframe`] runs every step on a `&mut Map`; the
-//! driver ([`crate::tracking::StereoSlam`]) calls it after each keyframe,
-//! holding the shared map's write lock, either inline or on the
-//! [`MappingThread`].
+//! [`LocalMapper::process_keyframe`] works on the [`SharedMap`] as
+//! snapshot → compute → apply for each step: it reads under the read lock
+//! (tracking reads alongside), computes with no lock held where the work is
+//! heavy (the BA solve), and writes the result under a short write lock,
+//! skipping entities culled or fused in the meantime. The driver
+//! ([`crate::system::StereoSlam`]) calls it inline or on its thread.
 
 mod bundle;
 mod fuse;
 mod triangulate;
-mod worker;
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, RwLockReadGuard, RwLockWriteGuard};
 use std::time::Instant;
 
-pub use bundle::{local_bundle_adjustment_around, BundleSummary};
-pub use fuse::fuse_with_neighbours;
-pub use triangulate::create_new_points;
-pub use worker::{MappingResult, MappingThread};
+pub use bundle::BundleSummary;
 
-use crate::map::{KeyFrameId, Map, MapPointId, PointCullingReport};
-use crate::tracking::{SlamError, StereoRig};
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
+use crate::map::{KeyFrameId, Map, MapPointId, PointCullingReport, SharedMap};
+use bundle::{apply_bundle, snapshot_bundle, solve_bundle};
+use fuse::{apply_fusion, plan_fusion};
+use triangulate::{apply_new_points, plan_new_points};
 
 /// Weighted observations a recent stereo point needs after two keyframes (ORB-SLAM3: 3).
 const MIN_STEREO_OBSERVATIONS: usize = 3;
@@ -39,6 +43,9 @@ pub struct MappingSummary {
     pub bundle: BundleSummary,
     /// Keyframes culled as redundant.
     pub keyframes_culled: usize,
+    /// Fusion, BA and culling were left to the next keyframe, which
+    /// tracking had already queued (ORB-SLAM3's `CheckNewKeyFrames`).
+    pub skipped_for_queue: bool,
     /// Milliseconds spent, all steps.
     pub elapsed_ms: f64,
     /// Milliseconds per step.
@@ -60,15 +67,42 @@ pub struct MappingStepTimes {
     pub culling_ms: f64,
 }
 
+/// A hook run just before the BA solve, with no lock held (tests hold the
+/// solve there to show that tracking goes on meanwhile).
+pub type SolveHook = Arc<dyn Fn() + Send + Sync>;
+
 /// The local-mapping state: the recently created points under probation.
-#[derive(Debug)]
 pub struct LocalMapper {
     rig: StereoRig,
     recent_points: Vec<MapPointId>,
+    abort: Arc<AtomicBool>,
+    before_solve: Option<SolveHook>,
     /// Run local bundle adjustment (on by default).
     pub bundle_adjustment: bool,
     /// Cull redundant keyframes (on by default).
     pub keyframe_culling: bool,
+    /// Check the map's invariants after each step and fail with
+    /// [`SlamError::MapInvariant`] (on in debug builds; tests switch it on).
+    pub check_invariants: bool,
+}
+
+impl std::fmt::Debug for LocalMapper {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LocalMapper")
+            .field("recent_points", &self.recent_points.len())
+            .field("bundle_adjustment", &self.bundle_adjustment)
+            .field("keyframe_culling", &self.keyframe_culling)
+            .field("check_invariants", &self.check_invariants)
+            .finish_non_exhaustive()
+    }
+}
+
+fn read(map: &SharedMap) -> Result<RwLockReadGuard<'_, Map>, SlamError> {
+    map.read().map_err(|_| SlamError::PoisonedMap)
+}
+
+fn write(map: &SharedMap) -> Result<RwLockWriteGuard<'_, Map>, SlamError> {
+    map.write().map_err(|_| SlamError::PoisonedMap)
 }
 
 impl LocalMapper {
@@ -77,57 +111,142 @@ impl LocalMapper {
         Self {
             rig,
             recent_points: Vec::new(),
+            abort: Arc::new(AtomicBool::new(false)),
+            before_solve: None,
             bundle_adjustment: true,
             keyframe_culling: true,
+            check_invariants: cfg!(debug_assertions),
         }
     }
 
+    /// The same switches, with no state (for a new map).
+    pub fn fresh(&self) -> Self {
+        Self {
+            rig: self.rig,
+            recent_points: Vec::new(),
+            abort: Arc::clone(&self.abort),
+            before_solve: self.before_solve.clone(),
+            bundle_adjustment: self.bundle_adjustment,
+            keyframe_culling: self.keyframe_culling,
+            check_invariants: self.check_invariants,
+        }
+    }
+
+    /// The BA abort flag (ORB-SLAM3's `mbAbortBA`): raising it makes a
+    /// running local BA return after its current LM iteration. The driver
+    /// raises it when tracking queues a keyframe; the mapper lowers it
+    /// before each fusion and BA.
+    pub fn abort_flag(&self) -> Arc<AtomicBool> {
+        Arc::clone(&self.abort)
+    }
+
+    /// Runs `hook` before every BA solve, with no lock held.
+    pub fn set_before_solve(&mut self, hook: Option<SolveHook>) {
+        self.before_solve = hook;
+    }
+
+    fn checked(&self, map: &Map, stage: &'static str) -> Result<(), SlamError> {
+        if self.check_invariants {
+            map.check_invariants()
+                .map_err(|source| SlamError::MapInvariant { stage, source })?;
+        }
+        Ok(())
+    }
+
     /// Runs every local-mapping step for `keyframe`, which tracking just
-    /// inserted with the points in `created`.
+    /// inserted with the points in `created`. `more_keyframes_waiting`
+    /// tells whether tracking has queued another keyframe: then, as
+    /// ORB-SLAM3's `LocalMapping::Run`, fusion, BA and keyframe culling
+    /// are left to the next keyframe.
     pub fn process_keyframe(
         &mut self,
-        map: &mut Map,
+        map: &SharedMap,
         keyframe: KeyFrameId,
         created: &[MapPointId],
+        more_keyframes_waiting: &dyn Fn() -> bool,
     ) -> Result<MappingSummary, SlamError> {
         let start = Instant::now();
         let mut summary = MappingSummary::default();
-        if map.keyframe(keyframe).is_err() {
-            return Ok(summary);
-        }
-        // Process the new keyframe: refresh its points, record the new ones.
-        let observed: Vec<MapPointId> = map
-            .keyframe(keyframe)
-            .map(|k| k.observed_points().map(|(_, p)| p).collect())
-            .unwrap_or_default();
-        for p in observed {
-            map.update_descriptor(p);
-            map.update_normal_and_depth(p);
-        }
-        self.recent_points.extend_from_slice(created);
-        map.update_connections(keyframe);
-        let culled: PointCullingReport =
-            map.cull_recent_points(&mut self.recent_points, keyframe, MIN_STEREO_OBSERVATIONS);
-        summary.points_culled = culled.low_found_ratio + culled.too_few_observations;
         let mut lap = Instant::now();
         let mut split = || {
             let ms = lap.elapsed().as_secs_f64() * 1e3;
             lap = Instant::now();
             ms
         };
-        summary.step_ms.process_ms = start.elapsed().as_secs_f64() * 1e3;
-        let triangulated = create_new_points(map, keyframe, &self.rig)?;
+        // Process the new keyframe: refresh its points, record the new
+        // ones, connect it, cull recent points (one short write).
+        {
+            let mut map = write(map)?;
+            if map.keyframe(keyframe).is_err() {
+                return Ok(summary);
+            }
+            let observed: Vec<MapPointId> = map
+                .keyframe(keyframe)
+                .map(|k| k.observed_points().map(|(_, p)| p).collect())
+                .unwrap_or_default();
+            for p in observed {
+                map.update_descriptor(p);
+                map.update_normal_and_depth(p);
+            }
+            self.recent_points.extend_from_slice(created);
+            map.update_connections(keyframe);
+            let culled: PointCullingReport =
+                map.cull_recent_points(&mut self.recent_points, keyframe, MIN_STEREO_OBSERVATIONS);
+            summary.points_culled = culled.low_found_ratio + culled.too_few_observations;
+            self.checked(&map, "keyframe processing")?;
+        }
+        summary.step_ms.process_ms = split();
+        let planned = plan_new_points(&*read(map)?, keyframe, &self.rig);
+        let triangulated = {
+            let mut map = write(map)?;
+            let created = apply_new_points(&mut map, planned)?;
+            self.checked(&map, "triangulation")?;
+            created
+        };
         summary.points_triangulated = triangulated.len();
         self.recent_points.extend(triangulated);
         summary.step_ms.triangulation_ms = split();
-        summary.fused = fuse_with_neighbours(map, keyframe, &self.rig)?;
+        self.abort.store(false, Ordering::Release);
+        if more_keyframes_waiting() {
+            summary.skipped_for_queue = true;
+            summary.elapsed_ms = start.elapsed().as_secs_f64() * 1e3;
+            return Ok(summary);
+        }
+        let planned = plan_fusion(&*read(map)?, keyframe, &self.rig);
+        {
+            let mut map = write(map)?;
+            summary.fused = apply_fusion(&mut map, keyframe, planned)?;
+            self.checked(&map, "fusion")?;
+        }
         summary.step_ms.fusion_ms = split();
-        if self.bundle_adjustment && map.keyframe_count() > 2 {
-            summary.bundle = local_bundle_adjustment_around(map, keyframe, &self.rig)?;
+        self.abort.store(false, Ordering::Release);
+        if more_keyframes_waiting() {
+            summary.skipped_for_queue = true;
+            summary.elapsed_ms = start.elapsed().as_secs_f64() * 1e3;
+            return Ok(summary);
+        }
+        if self.bundle_adjustment {
+            let snapshot = {
+                let map = read(map)?;
+                (map.keyframe_count() > 2)
+                    .then(|| snapshot_bundle(&map, keyframe, &self.rig))
+                    .flatten()
+            };
+            if let Some(snapshot) = snapshot {
+                if let Some(hook) = &self.before_solve {
+                    hook();
+                }
+                let solved = solve_bundle(snapshot, &self.abort)?;
+                let mut map = write(map)?;
+                summary.bundle = apply_bundle(&mut map, solved)?;
+                self.checked(&map, "local bundle adjustment")?;
+            }
         }
         summary.step_ms.bundle_ms = split();
         if self.keyframe_culling {
-            summary.keyframes_culled = self.cull_keyframes(map, keyframe)?;
+            let mut map = write(map)?;
+            summary.keyframes_culled = self.cull_keyframes(&mut map, keyframe)?;
+            self.checked(&map, "keyframe culling")?;
         }
         summary.step_ms.culling_ms = split();
         summary.elapsed_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -141,7 +260,7 @@ impl LocalMapper {
         let mut culled = 0;
         for kf in redundant {
             if kf != keyframe {
-                crate::tracking::MapContext::in_stage(map.erase_keyframe(kf), "keyframe culling")?;
+                map.erase_keyframe(kf).in_stage("keyframe culling")?;
                 culled += 1;
             }
         }

@@ -4,13 +4,14 @@
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
 
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 use crate::features::DescriptorSet;
 use crate::map::{FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor};
 use crate::matching::{BestTwo, DistanceThresholds};
 use crate::optim::lie::hat;
 use crate::optim::reprojection::{CHI2_MONO_95, CHI2_STEREO_95};
 use crate::optim::{LieGroup, Se3};
-use crate::tracking::{MapContext, SlamError, StereoRig};
 
 /// Neighbours triangulated against (ORB-SLAM3: 10 for stereo).
 const NEIGHBOURS: usize = 10;
@@ -248,15 +249,21 @@ fn point_for_match(
     Some(x)
 }
 
-/// Triangulates new points between `keyframe` and its best covisible
-/// keyframes; returns the points created.
-pub fn create_new_points(
-    map: &mut Map,
-    keyframe: KeyFrameId,
-    rig: &StereoRig,
-) -> Result<Vec<MapPointId>, SlamError> {
+/// A point triangulated from a snapshot, not yet in the map.
+pub(crate) struct NewPoint {
+    /// The new keyframe and its keypoint.
+    first: (KeyFrameId, usize),
+    /// The neighbour and its keypoint.
+    second: (KeyFrameId, usize),
+    position: Vector3<f64>,
+    descriptor: PointDescriptor,
+}
+
+/// Compute: triangulates the new keyframe's free keypoints against its best
+/// covisible keyframes (read only).
+pub(crate) fn plan_new_points(map: &Map, keyframe: KeyFrameId, rig: &StereoRig) -> Vec<NewPoint> {
     let Some(mut v1) = view(map, keyframe) else {
-        return Ok(Vec::new());
+        return Vec::new();
     };
     let scale_factor = f64::from(
         v1.measurements
@@ -266,7 +273,7 @@ pub fn create_new_points(
             .copied()
             .unwrap_or(1.2),
     );
-    let mut created = Vec::new();
+    let mut planned = Vec::new();
     for neighbour in map.best_covisible(keyframe, NEIGHBOURS) {
         let Some(v2) = view(map, neighbour) else {
             continue;
@@ -274,29 +281,56 @@ pub fn create_new_points(
         if (v2.center - v1.center).norm() < rig.baseline {
             continue;
         }
+        let mut used = Vec::new();
         for (i1, i2) in epipolar_matches(&v1, &v2, rig) {
-            let Some(x) = point_for_match(&v1, i1, &v2, i2, rig, scale_factor) else {
+            let Some(position) = point_for_match(&v1, i1, &v2, i2, rig, scale_factor) else {
                 continue;
             };
             let Some(descriptor) = PointDescriptor::from_set(&v1.measurements.descriptors, i1)
             else {
                 continue;
             };
-            let id = map
-                .add_map_point(x, descriptor, v1.id)
-                .in_stage("triangulation")?;
-            map.add_observation(id, v1.id, i1)
-                .in_stage("triangulation")?;
-            map.add_observation(id, v2.id, i2)
-                .in_stage("triangulation")?;
-            map.update_descriptor(id);
-            map.update_normal_and_depth(id);
-            created.push(id);
+            used.push(i1);
+            planned.push(NewPoint {
+                first: (v1.id, i1),
+                second: (v2.id, i2),
+                position,
+                descriptor,
+            });
         }
         // Keypoints matched now are no longer free in the new keyframe.
-        if let Ok(kf) = map.keyframe(keyframe) {
-            v1.unmatched.retain(|i| kf.map_point(*i).is_none());
+        used.sort_unstable();
+        v1.unmatched.retain(|i| used.binary_search(i).is_err());
+    }
+    planned
+}
+
+/// Apply: adds the planned points whose two keypoints are still free in
+/// live keyframes (local mapping may have culled one since the snapshot);
+/// returns the points created.
+pub(crate) fn apply_new_points(
+    map: &mut Map,
+    planned: Vec<NewPoint>,
+) -> Result<Vec<MapPointId>, SlamError> {
+    let free = |map: &Map, (kf, i): (KeyFrameId, usize)| {
+        map.keyframe(kf)
+            .is_ok_and(|k| i < k.measurements.len() && k.map_point(i).is_none())
+    };
+    let mut created = Vec::new();
+    for p in planned {
+        if !free(map, p.first) || !free(map, p.second) {
+            continue;
         }
+        let id = map
+            .add_map_point(p.position, p.descriptor, p.first.0)
+            .in_stage("triangulation")?;
+        map.add_observation(id, p.first.0, p.first.1)
+            .in_stage("triangulation")?;
+        map.add_observation(id, p.second.0, p.second.1)
+            .in_stage("triangulation")?;
+        map.update_descriptor(id);
+        map.update_normal_and_depth(id);
+        created.push(id);
     }
     Ok(created)
 }

@@ -7,7 +7,7 @@ use crate::map::{FrameMeasurements, KeyFrameId, MapPointId, StereoMeasurement};
 use crate::matching::KeypointGrid;
 use crate::optim::{LieGroup, Se3};
 
-use super::rig::StereoRig;
+use crate::camera::StereoRig;
 
 /// One stereo frame being tracked.
 #[derive(Debug, Clone)]

@@ -9,18 +9,9 @@ use crate::matching::{
     match_stereo, DistanceThresholds, PeriodicGuard, StereoImages, StereoParams,
 };
 
-use super::error::{MapContext, SlamError};
 use super::frame::Frame;
-use super::rig::StereoRig;
-
-/// Milliseconds spent building one frame.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
-pub struct FrontendTimings {
-    /// Both extractions (run in parallel), wall clock.
-    pub extraction_ms: f64,
-    /// Stereo matching.
-    pub stereo_ms: f64,
-}
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 
 /// The features of one stereo pair, before stereo matching.
 #[derive(Debug, Clone)]
@@ -69,30 +60,6 @@ impl StereoFrontend {
     /// The extractor's name, for reports.
     pub fn extractor_name(&self) -> &str {
         self.left.name()
-    }
-
-    /// Extracts both images in parallel, matches them along rows and drops
-    /// depths beyond the rig's `max_depth`.
-    pub fn build_frame(
-        &mut self,
-        index: usize,
-        timestamp: f64,
-        left_image: GrayImageView<'_>,
-        right_image: GrayImageView<'_>,
-        rig: &StereoRig,
-    ) -> Result<(Frame, FrontendTimings), SlamError> {
-        let start = Instant::now();
-        let features = self.extract(index, left_image, right_image)?;
-        let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
-        let (frame, stereo_ms) =
-            self.match_frame(index, timestamp, features, left_image, right_image, rig)?;
-        Ok((
-            frame,
-            FrontendTimings {
-                extraction_ms,
-                stereo_ms,
-            },
-        ))
     }
 
     /// Extracts the left and right images' features in parallel.

@@ -3,9 +3,9 @@
 
 use crate::map::{KeyFrameId, Map, MapPointId, PointDescriptor};
 
-use super::error::{MapContext, SlamError};
 use super::frame::Frame;
-use super::rig::StereoRig;
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 
 /// Keypoints needed to initialise (ORB-SLAM3's `StereoInitialization`
 /// tests `N > 500`, the keypoint count, not the stereo matches).
@@ -39,7 +39,7 @@ fn point_from_stereo(
 /// ORB-SLAM3's `StereoInitialization`: the first frame with more than 500
 /// keypoints (and at least 100 stereo points) becomes a keyframe at the origin, with one point per stereo
 /// keypoint (after the depth filter). `None` when the frame has too few.
-pub fn initialise_map(
+pub(crate) fn initialise_map(
     frame: &mut Frame,
     map: &mut Map,
     rig: &StereoRig,
@@ -77,9 +77,8 @@ pub struct KeyFrameContext {
     pub inliers: usize,
     /// Frames between keyframes at most (the frame rate).
     pub max_frames: usize,
-    /// Whether local mapping is idle (ORB-SLAM3's `AcceptKeyFrames`).
-    pub mapping_idle: bool,
-    /// Keyframes local mapping has not finished.
+    /// Keyframes local mapping has not finished (0: idle, ORB-SLAM3's
+    /// `AcceptKeyFrames`).
     pub mapping_queue: usize,
 }
 
@@ -88,7 +87,12 @@ pub struct KeyFrameContext {
 const MAX_MAPPING_QUEUE: usize = 3;
 
 /// ORB-SLAM3's `NeedNewKeyFrame` for stereo (without its BA interruption).
-pub fn needs_keyframe(frame: &Frame, map: &Map, rig: &StereoRig, ctx: &KeyFrameContext) -> bool {
+pub(crate) fn needs_keyframe(
+    frame: &Frame,
+    map: &Map,
+    rig: &StereoRig,
+    ctx: &KeyFrameContext,
+) -> bool {
     let n_keyframes = map.keyframe_count();
     if let Some(reloc) = ctx.last_relocalisation_frame {
         if frame.index < reloc + ctx.max_frames && n_keyframes > ctx.max_frames {
@@ -118,7 +122,8 @@ pub fn needs_keyframe(frame: &Frame, map: &Map, rig: &StereoRig, ctx: &KeyFrameC
     let ref_ratio = if n_keyframes < 2 { 0.4 } else { 0.75 };
     let inliers = ctx.inliers as f64;
     let c1a = frame.index >= ctx.last_keyframe_frame + ctx.max_frames;
-    let c1b = ctx.mapping_idle;
+    let mapping_idle = ctx.mapping_queue == 0;
+    let c1b = mapping_idle;
     let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
     let c2 = (inliers < reference_matches as f64 * ref_ratio || need_close) && ctx.inliers > 15;
     tracing::trace!(
@@ -133,14 +138,14 @@ pub fn needs_keyframe(frame: &Frame, map: &Map, rig: &StereoRig, ctx: &KeyFrameC
         c2,
         "keyframe decision"
     );
-    (c1a || c1b || c1c) && c2 && (ctx.mapping_idle || ctx.mapping_queue < MAX_MAPPING_QUEUE)
+    (c1a || c1b || c1c) && c2 && (mapping_idle || ctx.mapping_queue < MAX_MAPPING_QUEUE)
 }
 
 /// ORB-SLAM3's `CreateNewKeyFrame` for stereo: the frame becomes a
 /// keyframe observing its matched points, and its close stereo keypoints
 /// without a point get one (nearest first; at least 100 points in all).
 /// Returns the keyframe and the points it created.
-pub fn insert_keyframe(
+pub(crate) fn insert_keyframe(
     frame: &mut Frame,
     map: &mut Map,
     rig: &StereoRig,

@@ -5,11 +5,11 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use crate::map::{KeyFrameId, Map, MapPointId};
 
-use super::error::SlamError;
 use super::frame::Frame;
 use super::pose::refine_pose;
-use super::rig::StereoRig;
 use super::search::{match_projected, visible_in_frame, VisiblePoint};
+use crate::camera::StereoRig;
+use crate::error::SlamError;
 
 /// Local keyframes at most (ORB-SLAM3: 80).
 const MAX_LOCAL_KEYFRAMES: usize = 80;
@@ -63,9 +63,9 @@ pub struct LocalMapOutcome {
 }
 
 /// Tracks the local map. `recently_relocalised` widens the search as ORB-SLAM3 does.
-pub fn track_local_map(
+pub(crate) fn track_local_map(
     frame: &mut Frame,
-    map: &mut Map,
+    map: &Map,
     rig: &StereoRig,
     recently_relocalised: bool,
 ) -> Result<LocalMapOutcome, SlamError> {
@@ -75,8 +75,8 @@ pub fn track_local_map(
     }
     let matched: BTreeSet<MapPointId> = frame.map_points.iter().flatten().copied().collect();
     for id in &matched {
-        if let Ok(p) = map.map_point_mut(*id) {
-            p.visible += 1;
+        if let Ok(p) = map.map_point(*id) {
+            p.visible.increment();
         }
     }
     let mut seen = matched.clone();
@@ -93,8 +93,8 @@ pub fn track_local_map(
         }
     }
     for v in &visible {
-        if let Ok(p) = map.map_point_mut(v.id) {
-            p.visible += 1;
+        if let Ok(p) = map.map_point(v.id) {
+            p.visible.increment();
         }
     }
     let th = if recently_relocalised { 5.0 } else { 3.0 };
@@ -104,8 +104,8 @@ pub fn track_local_map(
     match_projected(frame, map, &oblique, 4.0 * th, (1, 0), Some(0.8))?;
     let inliers = refine_pose(frame, map, rig)?;
     for id in frame.map_points.iter().flatten() {
-        if let Ok(p) = map.map_point_mut(*id) {
-            p.found += 1;
+        if let Ok(p) = map.map_point(*id) {
+            p.found.increment();
         }
     }
     Ok(LocalMapOutcome {

@@ -4,12 +4,12 @@
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::{LieGroup, Se3};
 
-use super::error::SlamError;
 use super::frame::Frame;
 use super::pose::refine_pose;
 use super::relocalise::pnp_ransac;
-use super::rig::StereoRig;
 use super::search::{match_descriptors, match_projected, VisiblePoint};
+use crate::camera::StereoRig;
+use crate::error::SlamError;
 
 /// ORB-SLAM3's window for stereo (`th = 7`), in level-0 pixels per scale.
 pub const MOTION_MODEL_RADIUS: f32 = 7.0;
@@ -47,7 +47,7 @@ fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &StereoRig) ->
 /// frame's and the velocity, searches the last frame's points around their
 /// projections (window 7·scale, then twice that), then refines the pose.
 /// True when at least 10 inliers, and a quarter of the matches, remain.
-pub fn track_with_motion_model(
+pub(crate) fn track_with_motion_model(
     frame: &mut Frame,
     last: &Frame,
     velocity: &Se3,
@@ -83,7 +83,7 @@ pub fn track_with_motion_model(
 /// 15 matches and 10 inliers after refinement. When fewer than half the
 /// matches survive (a sudden turn puts the last pose far off), a PnP RANSAC
 /// pose is refined as well and the one with more inliers is kept.
-pub fn track_reference_keyframe(
+pub(crate) fn track_reference_keyframe(
     frame: &mut Frame,
     last_pose: &Se3,
     reference: KeyFrameId,

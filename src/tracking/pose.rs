@@ -4,9 +4,9 @@ use crate::map::Map;
 use crate::optim::pose_only::{optimise_pose, PoseCorrespondence, PoseOnlyConfig};
 use crate::optim::reprojection::Observation;
 
-use super::error::{MapContext, SlamError};
 use super::frame::Frame;
-use super::rig::StereoRig;
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 
 /// The observation keypoint `i` of `frame` makes (stereo when it has a depth).
 pub(crate) fn frame_observation(frame: &Frame, i: usize) -> Option<Observation> {

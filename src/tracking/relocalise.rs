@@ -11,11 +11,11 @@ use nalgebra::{Rotation3, UnitQuaternion, Vector3};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::Se3;
 
-use super::error::{MapContext, SlamError};
 use super::frame::Frame;
 use super::pose::refine_pose;
-use super::rig::StereoRig;
 use super::search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 
 /// Keyframes tried, newest first.
 const MAX_CANDIDATES: usize = 30;
@@ -110,7 +110,7 @@ fn widen_by_projection(
 
 /// ORB-SLAM3's `Relocalization` without bag-of-words: tries the newest
 /// keyframes; accepts the first pose with at least 50 inliers.
-pub fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool, SlamError> {
+pub(crate) fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool, SlamError> {
     let candidates: Vec<KeyFrameId> = map
         .keyframes()
         .map(|kf| kf.id())

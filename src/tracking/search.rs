@@ -10,9 +10,9 @@ use crate::matching::{
 };
 use crate::optim::LieGroup;
 
-use super::error::{MapContext, SlamError};
 use super::frame::Frame;
-use super::rig::StereoRig;
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 
 /// A map point predicted to be visible in the frame.
 #[derive(Debug, Clone, Copy)]

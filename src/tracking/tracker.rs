@@ -1,16 +1,16 @@
 //! The tracking state machine: initialise, track (motion model, reference
 //! keyframe, relocalisation), track the local map, decide on keyframes.
 
-use crate::map::{KeyFrameId, Map, MapPointId};
+use crate::map::{KeyFrameId, Map, MapPointId, SharedMap};
 use crate::optim::{LieGroup, Se3};
 
-use super::error::{MapContext, SlamError};
 use super::frame::Frame;
 use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext};
 use super::local_map::track_local_map;
 use super::motion::{track_reference_keyframe, track_with_motion_model};
 use super::relocalise::{relocalise, MIN_RELOCALISATION_INLIERS};
-use super::rig::StereoRig;
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
 
 /// Where tracking stands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -65,8 +65,21 @@ pub struct Tracker {
     reference: Option<KeyFrameId>,
     last_keyframe_frame: usize,
     last_relocalisation_frame: Option<usize>,
+    /// Index of the first frame of the current loss.
+    lost_since: Option<usize>,
     max_frames: usize,
 }
+
+/// Seconds of failed relocalisation after which tracking gives the map up
+/// and starts a new one from the next frame that can initialise. ORB-SLAM3
+/// waits 3 s in `RECENTLY_LOST` (stereo, no IMU), then resets a map of
+/// fewer than 10 keyframes or creates a new one in the atlas. spslam never
+/// resets: every map is kept (its frames stay in the trajectory), and it
+/// gives up sooner, because a vehicle at 10 m/s is 30 m away after 3 s and
+/// the old map can no longer be seen. A later loop closure can merge maps.
+pub const RELOCALISATION_PATIENCE_S: f64 = 0.5;
+/// The patience in frames, at least.
+const MIN_PATIENCE_FRAMES: usize = 3;
 
 /// Inliers local-map tracking needs (ORB-SLAM3: 30, 50 just after relocalisation).
 const MIN_LOCAL_MAP_INLIERS: usize = 30;
@@ -83,6 +96,7 @@ impl Tracker {
             reference: None,
             last_keyframe_frame: 0,
             last_relocalisation_frame: None,
+            lost_since: None,
             max_frames: rig.fps.round().max(1.0) as usize,
         }
     }
@@ -99,15 +113,50 @@ impl Tracker {
 
     /// Tracks one frame, inserting a keyframe when needed. `mapping_queue`
     /// is how many keyframes local mapping has not finished (0: idle).
+    ///
+    /// Locking (see [`crate::map`]): everything but initialisation and
+    /// keyframe insertion runs under the map's read lock, so local mapping's
+    /// readers (snapshots) run alongside; the write lock is taken only to
+    /// initialise the map or insert a keyframe, and released before return.
     pub fn track(
         &mut self,
-        mut frame: Frame,
-        map: &mut Map,
+        frame: Frame,
+        map: &SharedMap,
         mapping_queue: usize,
     ) -> Result<TrackOutcome, SlamError> {
         if self.state == TrackingState::NotInitialised {
-            return self.initialise(frame, map);
+            let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
+            return self.initialise(frame, &mut map);
         }
+        let (frame, mut outcome, wants_keyframe) = {
+            let map = map.read().map_err(|_| SlamError::PoisonedMap)?;
+            self.track_under_read_lock(frame, &map, mapping_queue)?
+        };
+        let Some(mut frame) = frame else {
+            return Ok(outcome);
+        };
+        if wants_keyframe {
+            let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
+            let (kf, created) = insert_keyframe(&mut frame, &mut map, &self.rig)?;
+            self.reference = Some(kf);
+            self.last_keyframe_frame = frame.index;
+            outcome.new_keyframe = Some((kf, created));
+            outcome.relative_pose = Some((kf, Se3::identity()));
+        }
+        self.keep_last(frame, outcome.relative_pose);
+        Ok(outcome)
+    }
+
+    /// Tracks `frame` against `map` (read only) and decides on a keyframe.
+    /// Returns the frame when it was tracked (the caller inserts the
+    /// keyframe, then keeps it as the last frame), the outcome, and whether
+    /// a keyframe is wanted.
+    fn track_under_read_lock(
+        &mut self,
+        mut frame: Frame,
+        map: &Map,
+        mapping_queue: usize,
+    ) -> Result<(Option<Frame>, TrackOutcome, bool), SlamError> {
         // The last frame follows its reference keyframe (moved by BA, or culled).
         if let (Some(last), Some((kf, rel))) = (self.last_frame.as_mut(), self.last_relative) {
             if let Ok(kf_pose) = map.pose_cw_of(kf) {
@@ -160,16 +209,17 @@ impl Tracker {
         }
         if self.state != TrackingState::Ok {
             self.velocity = None;
-            let relative_pose = None;
-            self.keep_last(frame, None);
-            return Ok(TrackOutcome {
+            self.lost_since.get_or_insert(frame.index);
+            let outcome = TrackOutcome {
                 state: self.state,
                 method: TrackingMethod::None,
                 inliers,
                 new_keyframe: None,
-                relative_pose,
-            });
+                relative_pose: None,
+            };
+            return Ok((None, outcome, false));
         }
+        self.lost_since = None;
         if let Some(reference) = frame.reference_keyframe {
             self.reference = Some(reference);
         }
@@ -177,33 +227,40 @@ impl Tracker {
             .last_frame
             .as_ref()
             .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()));
-        let mut new_keyframe = None;
-        if let Some(reference) = self.reference {
+        let wants_keyframe = self.reference.is_some_and(|reference| {
             let ctx = KeyFrameContext {
                 reference,
                 last_keyframe_frame: self.last_keyframe_frame,
                 last_relocalisation_frame: self.last_relocalisation_frame,
                 inliers,
                 max_frames: self.max_frames,
-                mapping_idle: mapping_queue == 0,
                 mapping_queue,
             };
-            if needs_keyframe(&frame, map, &self.rig, &ctx) {
-                let (kf, created) = insert_keyframe(&mut frame, map, &self.rig)?;
-                self.reference = Some(kf);
-                self.last_keyframe_frame = frame.index;
-                new_keyframe = Some((kf, created));
-            }
-        }
+            needs_keyframe(&frame, map, &self.rig, &ctx)
+        });
         let relative_pose = self.relative_to_reference(&frame, map)?;
-        self.keep_last(frame, relative_pose);
-        Ok(TrackOutcome {
+        let outcome = TrackOutcome {
             state: self.state,
             method,
             inliers,
-            new_keyframe,
+            new_keyframe: None,
             relative_pose,
-        })
+        };
+        Ok((Some(frame), outcome, wants_keyframe))
+    }
+
+    /// Whether relocalisation has failed long enough that tracking should
+    /// start a new map (see [`RELOCALISATION_PATIENCE_S`]) at frame `index`.
+    pub fn should_start_new_map(&self, index: usize) -> bool {
+        self.state == TrackingState::Lost
+            && self
+                .lost_since
+                .is_some_and(|since| index >= since + self.relocalisation_patience())
+    }
+
+    /// Frames of failed relocalisation before a new map is started.
+    pub fn relocalisation_patience(&self) -> usize {
+        ((RELOCALISATION_PATIENCE_S * self.rig.fps).ceil() as usize).max(MIN_PATIENCE_FRAMES)
     }
 
     fn initialise(&mut self, mut frame: Frame, map: &mut Map) -> Result<TrackOutcome, SlamError> {
@@ -236,7 +293,7 @@ impl Tracker {
     fn track_local_map_logged(
         &self,
         frame: &mut Frame,
-        map: &mut Map,
+        map: &Map,
         recently_relocalised: bool,
     ) -> Result<usize, SlamError> {
         frame.reference_keyframe = self.reference;

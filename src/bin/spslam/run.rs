@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use opencv::imgcodecs;
+use spslam::camera::StereoRig;
 use spslam::dataset::{EurocSequence, KittiSequence, StereoFrame, StereoRectifier};
 use spslam::eval::{
     align, evaluate, read_euroc, read_kitti, report::pair_trajectories, table::report_table,
@@ -17,7 +18,8 @@ use spslam::features::{
 };
 use spslam::optim::Se3;
 use spslam::settings::SlamSettings;
-use spslam::tracking::{SlamSummary, StereoFrontend, StereoRig, StereoSlam};
+use spslam::system::{SlamSummary, StereoSlam};
+use spslam::tracking::StereoFrontend;
 
 #[derive(clap::Args)]
 pub struct RunArgs {
@@ -60,16 +62,10 @@ enum ExtractorChoice {
     Orb,
 }
 
-/// The paper's depth filter on KITTI, metres (`Tracking.maxDepth`).
-const KITTI_MAX_DEPTH_M: f64 = 20.0;
-
 /// A stereo sequence and how to read its images.
 enum Source {
-    /// KITTI (`real` true) or a synthetic sequence in KITTI's layout.
-    Kitti {
-        seq: KittiSequence,
-        real: bool,
-    },
+    /// KITTI or a synthetic sequence in KITTI's layout.
+    Kitti(KittiSequence),
     Euroc(EurocSequence, StereoRectifier),
 }
 
@@ -80,10 +76,7 @@ impl Source {
         };
         let dir = PathBuf::from(dir);
         match kind {
-            "kitti" | "synth" => Ok(Self::Kitti {
-                seq: open_kitti_like(&dir)?,
-                real: kind == "kitti",
-            }),
+            "kitti" | "synth" => Ok(Self::Kitti(open_kitti_like(&dir)?)),
             "euroc" => {
                 let seq = EurocSequence::open(&dir)?;
                 let rectifier = StereoRectifier::from_euroc(seq.cam0(), seq.cam1())?;
@@ -95,28 +88,24 @@ impl Source {
 
     fn frames(&self) -> &[StereoFrame] {
         match self {
-            Self::Kitti { seq, .. } => seq.frames(),
+            Self::Kitti(seq) => seq.frames(),
             Self::Euroc(s, _) => s.frames(),
         }
     }
 
     fn is_kitti(&self) -> bool {
-        matches!(self, Self::Kitti { .. })
+        matches!(self, Self::Kitti(_))
     }
 
     /// Settings from the calibration: KITTI's P0/P1, EuRoC's rectified
-    /// camera. Real KITTI gets the paper's 20 m depth filter (its 0.54 m
-    /// baseline makes farther stereo depths unreliable); the synthetic rig
-    /// and EuRoC's indoor room keep every depth.
+    /// camera. Every stereo depth is kept (no `Tracking.maxDepth`): points
+    /// beyond `ThDepth` are ORB-SLAM3's "far" points, tracked and optimised
+    /// like the others.
     fn default_settings(&self) -> SlamSettings {
         match self {
-            Self::Kitti { seq, real } => {
+            Self::Kitti(seq) => {
                 let c = seq.calibration();
-                let mut s = SlamSettings::rectified_stereo(c.fx, c.fy, c.cx, c.cy, c.baseline);
-                if *real {
-                    s.max_depth = Some(KITTI_MAX_DEPTH_M);
-                }
-                s
+                SlamSettings::rectified_stereo(c.fx, c.fy, c.cx, c.cy, c.baseline)
             }
             Self::Euroc(_, r) => {
                 let mut s =
@@ -129,7 +118,7 @@ impl Source {
 
     fn load(&self, frame: &StereoFrame) -> Result<(GrayImage, GrayImage)> {
         match self {
-            Self::Kitti { .. } => Ok((
+            Self::Kitti(_) => Ok((
                 GrayImage::load(&frame.left)?,
                 GrayImage::load(&frame.right)?,
             )),
@@ -152,7 +141,7 @@ impl Source {
 
     fn ground_truth(&self, frames: usize) -> Result<Option<Trajectory>> {
         match self {
-            Self::Kitti { seq, .. } => {
+            Self::Kitti(seq) => {
                 let Some(path) = seq.ground_truth_path() else {
                     return Ok(None);
                 };
@@ -236,7 +225,7 @@ struct RunReport<'a> {
     evaluation: Option<&'a EvalReport>,
     /// Final-position drift (KITTI-layout runs with ground truth).
     drift: Option<Drift>,
-    frames: &'a [spslam::tracking::FrameRecord],
+    frames: &'a [spslam::system::FrameRecord],
 }
 
 /// The end of a run against the ground truth, both starting at frame 0's pose.

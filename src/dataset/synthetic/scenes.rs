@@ -1,10 +1,11 @@
 //! The built-in scenes: a city block (driven around), a straight street,
-//! and a ring corridor (walked with a hand-held camera).
+//! a ring corridor (walked with a hand-held camera) and an open highway
+//! (most of the texture far from the road).
 
 use nalgebra::{Point3, Vector3};
 
 use super::config::{SceneName, SyntheticConfig};
-use super::rng::mix64;
+use super::rng::{mix64, SplitMix64};
 use super::styles;
 use super::trajectory::{PathShape, Trajectory, Wobble};
 use super::world::{Plane, Skyline, World};
@@ -15,6 +16,9 @@ const CAR_CAMERA_HEIGHT: f64 = 1.65;
 const WALKER_CAMERA_HEIGHT: f64 = 1.5;
 /// Frames of the open-path scenes when the config does not say.
 const DEFAULT_OPEN_FRAMES: usize = 200;
+/// Frames of the `highway` scene when the config does not say; its world
+/// is never shorter than this many frames of driving.
+const DEFAULT_HIGHWAY_FRAMES: usize = 300;
 
 /// A world and the path through it.
 #[derive(Debug, Clone)]
@@ -34,6 +38,7 @@ pub fn build_scene(config: &SyntheticConfig) -> Scene {
         SceneName::Loop => block_ring(config, nominal_step),
         SceneName::Straight => straight_street(config, nominal_step),
         SceneName::Wobbly => ring_corridor(config, nominal_step),
+        SceneName::Highway => highway(config, nominal_step),
     }
 }
 
@@ -232,6 +237,241 @@ fn ring_corridor(config: &SyntheticConfig, nominal_step: f64) -> Scene {
     }
 }
 
+/// The `highway` scene: a straight open road, driven in its right lane
+/// at 25 m/s (2.5 m per frame), for 300 frames by default.
+///
+/// * Ground: a 12-m carriageway (x ∈ [−8, 4]) of asphalt between grass
+///   verges reaching 160 m to each side.
+/// * Far (most of the image above the horizon): on each side two rows of
+///   skylines facing the road, 10–40-m buildings with gaps at 45 m (left)
+///   and 60 m (right), 60–150-m hillsides behind them at 110 m and 140 m;
+///   25–70-m ridges facing the car every ~110 m between the rows (48–135 m
+///   from the road, so that some far texture is ahead, not only beside);
+///   and a 100–200-m hill across the road 150 m past the last frame.
+/// * Near, sparse: every 45–75 m a road sign, a barrier panel or a
+///   roadside cabinet, 5.5–14 m from the car's path, so a handful are in
+///   view at once.
+///
+/// About 45 planes for the default 300 frames; the world grows with
+/// `frames × step` (at least 300 frames' worth).
+fn highway(config: &SyntheticConfig, step: f64) -> Scene {
+    let seed = config.seed;
+    let frames = config.frames.unwrap_or(DEFAULT_HIGHWAY_FRAMES);
+    let ground = CAR_CAMERA_HEIGHT;
+    // Where the road ends: the far hill, 150 m past the last frame.
+    let end = frames.max(DEFAULT_HIGHWAY_FRAMES) as f64 * step + 150.0;
+    let back = -60.0;
+    let (road_left, road_right, verge) = (-8.0, 4.0, 160.0);
+    let mut planes = vec![
+        horizontal(
+            ground,
+            [road_left, road_right],
+            [back, end],
+            true,
+            styles::asphalt(mix64(seed ^ 80)),
+        ),
+        horizontal(
+            ground,
+            [-verge, road_left],
+            [back, end],
+            true,
+            styles::verge(mix64(seed ^ 81)),
+        ),
+        horizontal(
+            ground,
+            [road_right, verge],
+            [back, end],
+            true,
+            styles::verge(mix64(seed ^ 82)),
+        ),
+    ];
+    // Rows along the road, facing it: (x, segment, heights, gaps, hills?).
+    let rows = [
+        (-45.0, 24.0, [10.0, 35.0], 0.6, false),
+        (-110.0, 45.0, [60.0, 130.0], 0.0, true),
+        (60.0, 30.0, [12.0, 40.0], 0.6, false),
+        (140.0, 55.0, [70.0, 150.0], 0.0, true),
+    ];
+    for (i, (x, segment, [low, high], gaps, hills)) in rows.into_iter().enumerate() {
+        let row_seed = mix64(seed ^ (83 + i as u64));
+        // A wall faces the right of its direction: +z on the left, −z on the right.
+        let (from, to) = if x < 0.0 {
+            ([x, back], [x, end])
+        } else {
+            ([x, end], [x, back])
+        };
+        planes.push(far_skyline(
+            from,
+            to,
+            ground,
+            row_seed,
+            segment,
+            [low, high],
+            gaps,
+            hills,
+        ));
+    }
+    // Ridges facing the car between the rows, alternately left and right.
+    let mut rng = SplitMix64::new(mix64(seed ^ 90));
+    let mut z = 60.0 + rng.uniform(0.0, 40.0);
+    let mut k = 0u64;
+    while z < end - 60.0 {
+        let span = if k % 2 == 0 {
+            [-105.0, -48.0]
+        } else {
+            [63.0, 135.0]
+        };
+        let ridge_seed = mix64(seed ^ (100 + k));
+        planes.push(far_skyline(
+            [span[0], z],
+            [span[1], z],
+            ground,
+            ridge_seed,
+            15.0,
+            [25.0, 70.0],
+            0.3,
+            k % 4 >= 2,
+        ));
+        z += rng.uniform(90.0, 130.0);
+        k += 1;
+    }
+    planes.push(far_skyline(
+        [-300.0, end],
+        [300.0, end],
+        ground,
+        mix64(seed ^ 91),
+        60.0,
+        [100.0, 200.0],
+        0.0,
+        true,
+    ));
+    planes.extend(roadside_objects(seed, ground, end - 60.0));
+    Scene {
+        world: World::new(planes),
+        trajectory: Trajectory {
+            shape: PathShape::Straight,
+            step,
+            fps: config.fps,
+            wobble: None,
+        },
+        frames,
+    }
+}
+
+/// A far skyline from `from` to `to` (facing the right of that direction):
+/// buildings (`hills` false) or a hillside, `segment` metres wide pieces of
+/// heights in `heights`, odd pieces missing with probability `gaps`.
+#[allow(clippy::too_many_arguments)]
+fn far_skyline(
+    from: [f64; 2],
+    to: [f64; 2],
+    ground: f64,
+    seed: u64,
+    segment: f64,
+    [min_height, max_height]: [f64; 2],
+    gaps: f64,
+    hills: bool,
+) -> Plane {
+    let texture = if hills {
+        styles::hillside(seed)
+    } else {
+        styles::distant_buildings(seed)
+    };
+    Plane::wall(from, to, ground, 0.0, texture).with_skyline(Skyline {
+        segment,
+        min_height,
+        max_height,
+        gap_probability: gaps,
+        seed,
+    })
+}
+
+/// Sparse roadside objects along `z` ∈ [25 m, `until`]: every 45–75 m, on
+/// a random side, a sign board turned 20° towards the road (6–12 m right
+/// or 10–14 m left of the path, 1.5–2.5 m above the ground), a barrier
+/// panel along the road (5.5–7 m right or 9.5–11 m left) or a cabinet
+/// (its front and its road-side face, 7–14 m away).
+fn roadside_objects(seed: u64, ground: f64, until: f64) -> Vec<Plane> {
+    let mut rng = SplitMix64::new(mix64(seed ^ 95));
+    let mut planes = Vec::new();
+    let mut z = 25.0 + rng.uniform(0.0, 20.0);
+    let mut k = 0u64;
+    while z < until {
+        let texture_seed = mix64(seed ^ (200 + k));
+        // +1: right of the road, −1: left.
+        let side = if rng.next_unit() < 0.5 { 1.0 } else { -1.0 };
+        let kind = rng.next_unit();
+        if kind < 0.4 {
+            let lateral = if side > 0.0 {
+                rng.uniform(6.0, 12.0)
+            } else {
+                rng.uniform(10.0, 14.0)
+            };
+            let (width, height) = (rng.uniform(3.0, 4.5), rng.uniform(2.0, 3.0));
+            let bottom = rng.uniform(1.5, 2.5);
+            let angle = 20f64.to_radians();
+            // Normal (−side·sin a, 0, −cos a): facing the car and the road.
+            let u_axis = Vector3::new(angle.cos(), 0.0, -side * angle.sin());
+            let centre = Point3::new(side * lateral, ground - bottom, z);
+            planes.push(Plane::new(
+                centre - u_axis * (0.5 * width),
+                u_axis,
+                -Vector3::y(),
+                width,
+                height,
+                styles::indoor_wall(texture_seed),
+            ));
+        } else if kind < 0.7 {
+            let lateral = if side > 0.0 {
+                rng.uniform(5.5, 7.0)
+            } else {
+                rng.uniform(9.5, 11.0)
+            };
+            let (length, height) = (rng.uniform(10.0, 18.0), rng.uniform(1.2, 2.5));
+            let x = side * lateral;
+            let (from, to) = if side > 0.0 {
+                ([x, z + length], [x, z])
+            } else {
+                ([x, z], [x, z + length])
+            };
+            planes.push(Plane::wall(
+                from,
+                to,
+                ground,
+                height,
+                styles::facade(texture_seed),
+            ));
+        } else {
+            let near = rng.uniform(7.0, 14.0);
+            let (width, depth) = (rng.uniform(2.0, 3.0), rng.uniform(3.0, 6.0));
+            let height = rng.uniform(2.2, 3.5);
+            let (x_near, x_far) = (side * near, side * (near + width));
+            let texture = styles::facade(texture_seed);
+            let (front_from, front_to) = if side > 0.0 {
+                ([x_near, z], [x_far, z])
+            } else {
+                ([x_far, z], [x_near, z])
+            };
+            planes.push(Plane::wall(
+                front_from,
+                front_to,
+                ground,
+                height,
+                texture.clone(),
+            ));
+            let (side_from, side_to) = if side > 0.0 {
+                ([x_near, z + depth], [x_near, z])
+            } else {
+                ([x_near, z], [x_near, z + depth])
+            };
+            planes.push(Plane::wall(side_from, side_to, ground, height, texture));
+        }
+        z += rng.uniform(45.0, 75.0);
+        k += 1;
+    }
+    planes
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -266,11 +506,48 @@ mod tests {
                     })
                     .map(|h| h.t)
                     .fold(f64::INFINITY, f64::min);
+                // An open road for the highway, a street or corridor otherwise.
+                let range = if name == SceneName::Highway {
+                    5.0..200.0
+                } else {
+                    1.0..8.5
+                };
                 assert!(
-                    (1.0..8.5).contains(&nearest_wall),
+                    range.contains(&nearest_wall),
                     "{name} frame {i}: {nearest_wall}"
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_highway_is_clear_and_long_enough() {
+        let config = SyntheticConfig::for_scene(SceneName::Highway);
+        let scene = build_scene(&config);
+        assert_eq!(scene.frames, 300);
+        assert!((scene.trajectory.step - 2.5).abs() < 1e-12);
+        assert!(
+            scene.world.planes.len() < 60,
+            "{} planes",
+            scene.world.planes.len()
+        );
+        for i in 0..scene.frames {
+            let eye = Point3::from(scene.trajectory.pose(i as f64).translation.vector);
+            // Nothing on the road between this frame and the next.
+            let ahead = scene.world.cast(&eye, &Vector3::z()).expect("a hill ahead");
+            assert!(ahead.t > 100.0, "frame {i}: {ahead:?}");
+            // The car's roof (1.65 m up) and its sides stay clear too.
+            for offset in [Vector3::new(-1.0, 0.0, 0.0), Vector3::new(1.0, 0.0, 0.0)] {
+                let hit = scene.world.cast(&(eye + offset), &Vector3::z());
+                assert!(hit.is_some_and(|h| h.t > 100.0), "frame {i}: {hit:?}");
+            }
+        }
+        // Longer sequences get a longer world.
+        let mut long = config.clone();
+        long.frames = Some(600);
+        let scene = build_scene(&long);
+        let eye = Point3::from(scene.trajectory.pose(599.0).translation.vector);
+        let ahead = scene.world.cast(&eye, &Vector3::z()).unwrap();
+        assert!((100.0..=160.0).contains(&ahead.t), "{ahead:?}");
     }
 }

@@ -1,6 +1,9 @@
-//! Texture presets: façades, asphalt, indoor walls, floor tiles, ceilings.
+//! Texture presets: façades, asphalt, indoor walls, floor tiles, ceilings,
+//! and for the open road grass verges, distant buildings and hillsides.
 //! Sizes are in metres; each preset mixes corners (rectangles, checkers)
-//! and blobs (discs) at several scales with texture-poor zones.
+//! and blobs (discs) at several scales with texture-poor zones. The
+//! distant presets are built for 10–40 cm pixels (surfaces 40–150 m away):
+//! their coarsest shapes span tens of pixels, their finest a few.
 
 use super::texture::{ProceduralTexture, ShapeKind, ShapeLayer, Texture};
 
@@ -133,6 +136,77 @@ pub fn ceiling(seed: u64) -> Texture {
             grid([2.4, 2.4], 0.8, 0.35, [235.0, 255.0]),
             scatter(0.8, 0.3, ShapeKind::Rectangle, [0.2, 0.6], [120.0, 190.0]),
             scatter(0.3, 0.3, ShapeKind::Disc, [0.3, 0.7], [100.0, 180.0]),
+        ],
+    })
+}
+
+/// A grass verge: bushes and dark patches, lighter gravel strips, stones
+/// and litter; a third of 8-m zones are plain grass.
+pub fn verge(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 135.0,
+        shading: 18.0,
+        shading_wavelength: 12.0,
+        flat_zone_size: 8.0,
+        flat_zone_fraction: 0.3,
+        layers: vec![
+            scatter(4.0, 0.3, ShapeKind::Disc, [0.4, 0.85], [45.0, 95.0]),
+            scatter(2.2, 0.3, ShapeKind::Rectangle, [0.3, 0.8], [130.0, 185.0]),
+            scatter(0.9, 0.3, ShapeKind::Disc, [0.3, 0.7], [40.0, 200.0]),
+            scatter(0.4, 0.35, ShapeKind::Checker, [0.3, 0.6], [30.0, 100.0]),
+            scatter(0.12, 0.4, ShapeKind::Rectangle, [0.3, 0.7], [90.0, 160.0]),
+        ],
+    })
+}
+
+/// Buildings seen from 40–150 m (warehouses, offices, blocks): storey-high
+/// panels and bays, a grid of 2-m windows, signs and marks down to 0.4 m,
+/// so that the texture has corners at every scale from a few pixels to
+/// tens; a sixth of 16-m zones are bare cladding.
+pub fn distant_buildings(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 150.0,
+        shading: 28.0,
+        shading_wavelength: 30.0,
+        flat_zone_size: 16.0,
+        flat_zone_fraction: 0.15,
+        layers: vec![
+            scatter(
+                14.0,
+                0.55,
+                ShapeKind::Rectangle,
+                [0.45, 0.85],
+                [50.0, 215.0],
+            ),
+            grid([4.0, 3.6], 0.8, 0.5, [20.0, 105.0]),
+            scatter(7.0, 0.35, ShapeKind::Checker, [0.35, 0.7], [10.0, 90.0]),
+            scatter(3.2, 0.35, ShapeKind::Disc, [0.35, 0.75], [25.0, 235.0]),
+            scatter(1.6, 0.4, ShapeKind::Rectangle, [0.3, 0.75], [40.0, 220.0]),
+            scatter(0.7, 0.35, ShapeKind::Rectangle, [0.3, 0.7], [80.0, 210.0]),
+        ],
+    })
+}
+
+/// A wooded hillside seen from 50–300 m: fields and rock faces, clumps of
+/// trees at three scales, boulders and clearings; a tenth of 25-m zones
+/// are plain meadow.
+pub fn hillside(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 120.0,
+        shading: 30.0,
+        shading_wavelength: 45.0,
+        flat_zone_size: 25.0,
+        flat_zone_fraction: 0.1,
+        layers: vec![
+            scatter(18.0, 0.5, ShapeKind::Rectangle, [0.5, 0.9], [70.0, 185.0]),
+            scatter(9.0, 0.55, ShapeKind::Disc, [0.5, 0.9], [25.0, 90.0]),
+            scatter(4.5, 0.45, ShapeKind::Disc, [0.4, 0.85], [35.0, 170.0]),
+            scatter(3.0, 0.3, ShapeKind::Checker, [0.35, 0.65], [20.0, 95.0]),
+            scatter(1.8, 0.45, ShapeKind::Disc, [0.3, 0.8], [20.0, 210.0]),
+            scatter(0.8, 0.4, ShapeKind::Rectangle, [0.3, 0.7], [60.0, 200.0]),
         ],
     })
 }

@@ -51,6 +51,8 @@ pub use config::LocalBaConfig;
 pub use problem::{BaObservation, BundleProblem};
 pub use report::{LocalBaReport, StageReport, Termination};
 
+use std::sync::atomic::AtomicBool;
+
 use chunk::pose_matrices;
 use layout::Layout;
 use outliers::deactivate_outliers;
@@ -69,6 +71,20 @@ use super::OptimError;
 pub fn local_bundle_adjustment(
     problem: &mut BundleProblem,
     config: &LocalBaConfig,
+) -> Result<LocalBaReport, OptimError> {
+    local_bundle_adjustment_abortable(problem, config, None)
+}
+
+/// [`local_bundle_adjustment`] that stops early when `abort` is raised
+/// (ORB-SLAM3's `mbAbortBA`, raised when tracking queues a new keyframe):
+/// the running stage returns after its current LM iteration with
+/// [`Termination::Aborted`], a stage not yet started is skipped, and the
+/// problem receives the best state reached. Outliers are classified at
+/// that state, as after a complete run.
+pub fn local_bundle_adjustment_abortable(
+    problem: &mut BundleProblem,
+    config: &LocalBaConfig,
+    abort: Option<&AtomicBool>,
 ) -> Result<LocalBaReport, OptimError> {
     problem.validate()?;
     let mut fixed = problem.fixed.clone();
@@ -93,6 +109,7 @@ pub fn local_bundle_adjustment(
             active: &active,
             robust: true,
             iterations: config.first_stage_iterations,
+            abort,
         },
     )?;
     let mut matrices = Vec::new();
@@ -110,6 +127,7 @@ pub fn local_bundle_adjustment(
             active: &active,
             robust: config.robust_second_stage,
             iterations: config.second_stage_iterations,
+            abort,
         },
     )?;
     pose_matrices(state.poses, &mut matrices);

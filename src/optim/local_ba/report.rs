@@ -15,6 +15,9 @@ pub enum Termination {
     IterationLimit,
     /// The stage had nothing to optimise (no iterations requested).
     Skipped,
+    /// The abort flag was raised (ORB-SLAM3's `mbAbortBA`): the stage
+    /// stopped after its current iteration, keeping its best state.
+    Aborted,
 }
 
 /// One Levenberg–Marquardt stage.

@@ -1,5 +1,7 @@
 //! One Levenberg–Marquardt stage over the Schur-reduced camera system.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use nalgebra::{Cholesky, DMatrix, DVector, Matrix6, Vector3, Vector6};
 
 use super::chunk::{pose_matrices, PassInputs, PointChunk};
@@ -27,6 +29,8 @@ pub(super) struct StageSettings<'a> {
     pub robust: bool,
     /// Iteration limit.
     pub iterations: usize,
+    /// Stop after the current iteration once this is raised.
+    pub abort: Option<&'a AtomicBool>,
 }
 
 /// The solver's working memory, allocated once per bundle adjustment.
@@ -221,6 +225,10 @@ impl<'a> Solver<'a> {
             report.termination = Termination::Skipped;
             return Ok(report);
         }
+        if stage.abort.is_some_and(|a| a.load(Ordering::Acquire)) {
+            report.termination = Termination::Aborted;
+            return Ok(report);
+        }
         let mut damping = NielsenDamping::new(self.config.initial_damping);
         for iteration in 0..stage.iterations {
             if cost == 0.0 {
@@ -270,6 +278,10 @@ impl<'a> Solver<'a> {
             }
             if step_small {
                 report.termination = Termination::StepConverged;
+                break;
+            }
+            if stage.abort.is_some_and(|a| a.load(Ordering::Acquire)) {
+                report.termination = Termination::Aborted;
                 break;
             }
         }

@@ -1,18 +1,18 @@
 //! Local mapping on its own thread, as in ORB-SLAM3: tracking sends each
-//! new keyframe through a channel, the thread runs
-//! [`LocalMapper::process_keyframe`] under the shared map's write lock and
-//! sends back what it did. No `unsafe`: the map is an `Arc<RwLock<Map>>`,
-//! the queue an `mpsc` channel and the backlog an atomic counter.
+//! new keyframe through a channel and raises the BA abort flag; the thread
+//! runs [`LocalMapper::process_keyframe`] (snapshot → compute → apply, so
+//! tracking keeps reading the map meanwhile) and sends back what it did.
+//! No `unsafe`: the map is an `Arc<RwLock<Map>>`, the queue an `mpsc`
+//! channel and the backlog an atomic counter.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
+use crate::error::SlamError;
 use crate::map::{KeyFrameId, MapPointId, SharedMap};
-use crate::tracking::SlamError;
-
-use super::{LocalMapper, MappingSummary};
+use crate::mapping::{LocalMapper, MappingSummary};
 
 /// A keyframe for the thread, with the points tracking created with it.
 struct MappingJob {
@@ -35,6 +35,7 @@ pub struct MappingThread {
     jobs: Option<Sender<MappingJob>>,
     results: Receiver<MappingResult>,
     pending: Arc<AtomicUsize>,
+    abort: Arc<AtomicBool>,
     handle: Option<JoinHandle<LocalMapper>>,
 }
 
@@ -45,11 +46,11 @@ fn run(
     results: Sender<MappingResult>,
     pending: Arc<AtomicUsize>,
 ) -> LocalMapper {
+    // `pending` counts the job in progress: more than one means tracking
+    // has queued another keyframe.
+    let waiting = || pending.load(Ordering::Acquire) > 1;
     for job in jobs {
-        let summary = match map.write() {
-            Ok(mut map) => mapper.process_keyframe(&mut map, job.keyframe, &job.created),
-            Err(_) => Err(SlamError::PoisonedMap),
-        };
+        let summary = mapper.process_keyframe(&map, job.keyframe, &job.created, &waiting);
         let failed = summary.is_err();
         pending.fetch_sub(1, Ordering::AcqRel);
         let sent = results.send(MappingResult {
@@ -63,13 +64,24 @@ fn run(
     mapper
 }
 
+/// The message of a thread's panic payload.
+fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "no message".into())
+}
+
 impl MappingThread {
-    /// Starts the thread with `mapper` working on `map`.
+    /// Starts the thread with `mapper` working on `map`. A failed spawn is
+    /// [`SlamError::MappingThread`].
     pub fn spawn(mapper: LocalMapper, map: SharedMap) -> Result<Self, SlamError> {
         let (job_tx, job_rx) = mpsc::channel();
         let (result_tx, result_rx) = mpsc::channel();
         let pending = Arc::new(AtomicUsize::new(0));
         let counter = Arc::clone(&pending);
+        let abort = mapper.abort_flag();
         let handle = std::thread::Builder::new()
             .name("local-mapping".into())
             .spawn(move || run(mapper, map, job_rx, result_tx, counter))
@@ -80,6 +92,7 @@ impl MappingThread {
             jobs: Some(job_tx),
             results: result_rx,
             pending,
+            abort,
             handle: Some(handle),
         })
     }
@@ -89,22 +102,41 @@ impl MappingThread {
         self.pending.load(Ordering::Acquire)
     }
 
-    /// Queues a keyframe.
+    /// Queues a keyframe and raises the BA abort flag, so a running local
+    /// BA yields to it (ORB-SLAM3's `InsertKeyFrame`).
     pub fn submit(&self, keyframe: KeyFrameId, created: Vec<MapPointId>) -> Result<(), SlamError> {
         let stopped = || SlamError::MappingThread {
-            reason: "it is no longer running (an earlier keyframe failed)".into(),
+            reason: "it is no longer running (an earlier keyframe failed or it panicked)".into(),
         };
         let jobs = self.jobs.as_ref().ok_or_else(stopped)?;
         self.pending.fetch_add(1, Ordering::AcqRel);
+        self.abort.store(true, Ordering::Release);
         jobs.send(MappingJob { keyframe, created }).map_err(|_| {
             self.pending.fetch_sub(1, Ordering::AcqRel);
             stopped()
         })
     }
 
-    /// The results that arrived so far, without waiting.
-    pub fn poll(&self) -> Vec<MappingResult> {
-        self.results.try_iter().collect()
+    /// The results that arrived so far, without waiting. A thread that
+    /// stopped without reporting an error (it panicked) is an error here.
+    pub fn poll(&mut self) -> Result<Vec<MappingResult>, SlamError> {
+        let results: Vec<MappingResult> = self.results.try_iter().collect();
+        let reported_error = results.iter().any(|r| r.summary.is_err());
+        let stopped = self.handle.as_ref().is_some_and(|h| h.is_finished());
+        if stopped && !reported_error {
+            return Err(self.join_failure());
+        }
+        Ok(results)
+    }
+
+    /// Joins a thread that stopped by itself and says why.
+    fn join_failure(&mut self) -> SlamError {
+        let reason = match self.handle.take().map(JoinHandle::join) {
+            Some(Err(payload)) => format!("it panicked: {}", panic_message(payload.as_ref())),
+            Some(Ok(_)) => "it stopped unexpectedly".into(),
+            None => "it was already stopped".into(),
+        };
+        SlamError::MappingThread { reason }
     }
 
     /// Waits for every queued keyframe, stops the thread and returns the
@@ -114,8 +146,8 @@ impl MappingThread {
         let handle = self.handle.take().ok_or_else(|| SlamError::MappingThread {
             reason: "it was already stopped".into(),
         })?;
-        let mapper = handle.join().map_err(|_| SlamError::MappingThread {
-            reason: "it panicked".into(),
+        let mapper = handle.join().map_err(|payload| SlamError::MappingThread {
+            reason: format!("it panicked: {}", panic_message(payload.as_ref())),
         })?;
         Ok((mapper, self.results.try_iter().collect()))
     }

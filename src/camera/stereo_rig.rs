@@ -1,8 +1,8 @@
-//! The rectified stereo rig as tracking and mapping see it.
+//! The rectified stereo rig.
 
 use nalgebra::Vector3;
 
-use super::error::SlamError;
+use crate::error::SlamError;
 use crate::optim::reprojection::PinholeStereo;
 use crate::settings::SlamSettings;
 

@@ -1,4 +1,5 @@
-//! Errors of the SLAM pipeline (tracking, local mapping, the driver).
+//! Errors of the SLAM pipeline, shared by tracking, local mapping and the
+//! system layer that drives them.
 
 use crate::features::FeatureError;
 use crate::map::MapError;
@@ -76,6 +77,22 @@ pub enum SlamError {
     /// The shared map's lock was poisoned by a panicking thread.
     #[error("the shared map's lock is poisoned (a thread panicked while holding it)")]
     PoisonedMap,
+    /// A map invariant was broken after a local-mapping step (checked in
+    /// debug builds and tests, see `LocalMapper::check_invariants`).
+    #[error("map invariant broken after {stage}: {source}")]
+    MapInvariant {
+        /// The step after which the check failed.
+        stage: &'static str,
+        /// What is inconsistent.
+        #[source]
+        source: crate::map::InvariantViolation,
+    },
+    /// A frame record refers to a map the atlas does not have.
+    #[error("atlas map {map} does not exist")]
+    UnknownAtlasMap {
+        /// The map index.
+        map: usize,
+    },
     /// The local-mapping thread stopped unexpectedly.
     #[error("the local-mapping thread stopped: {reason}")]
     MappingThread {

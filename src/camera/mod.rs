@@ -1,0 +1,8 @@
+//! The camera rig as tracking and local mapping see it: intrinsics, stereo
+//! baseline, image size, ORB-SLAM3's close/far depth threshold and the
+//! optional depth filter. It sits below tracking and mapping, so both can
+//! use it without importing each other.
+
+mod stereo_rig;
+
+pub use stereo_rig::StereoRig;

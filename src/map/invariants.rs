@@ -1,0 +1,862 @@
+//! A full consistency check of the map's bookkeeping, for tests and debug
+//! assertions: both sides of every association, observation weights, the
+//! covisibility nodes and the spanning tree, culled keyframes and fused points.
+
+use super::ids::{KeyFrameId, MapPointId};
+use super::{observation_weight, Map};
+
+/// The first inconsistency [`Map::check_invariants`] found.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InvariantViolation {
+    /// A keyframe is stored under another id than its own.
+    #[error("the keyframe stored under {key} says it is {stored}")]
+    KeyFrameIdMismatch {
+        /// The id it is stored under.
+        key: KeyFrameId,
+        /// The id it reports.
+        stored: KeyFrameId,
+    },
+    /// A keyframe id the map has not handed out yet.
+    #[error("{keyframe} was never issued (next keyframe id is {next})")]
+    UnissuedKeyFrameId {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The next id the map would issue.
+        next: u64,
+    },
+    /// A keyframe whose keypoints, descriptors and stereo entries disagree in number.
+    #[error("{keyframe} has {keypoints} keypoints, {descriptors} descriptors and {stereo} stereo entries")]
+    MeasurementsMismatch {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// Keypoints.
+        keypoints: usize,
+        /// Descriptor rows.
+        descriptors: usize,
+        /// Stereo entries.
+        stereo: usize,
+    },
+    /// A keyframe with a map-point slot count other than its keypoint count.
+    #[error("{keyframe} has {slots} map-point slots for {keypoints} keypoints")]
+    SlotCountMismatch {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// Map-point slots.
+        slots: usize,
+        /// Keypoints.
+        keypoints: usize,
+    },
+    /// A keyframe pose with a NaN or infinite entry.
+    #[error("{keyframe} has a non-finite pose")]
+    NonFinitePose {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A keyframe slot refers to a point that is not live.
+    #[error("{keyframe} keypoint {index} refers to {point}, which is not live")]
+    SlotWithoutPoint {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The keypoint index.
+        index: usize,
+        /// The point it refers to.
+        point: MapPointId,
+    },
+    /// A keyframe slot refers to a live point that does not record that
+    /// observation (or records it at another keypoint).
+    #[error(
+        "{keyframe} keypoint {index} refers to {point}, whose observation of it is at {observed:?}"
+    )]
+    SlotWithoutObservation {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The keypoint index.
+        index: usize,
+        /// The point it refers to.
+        point: MapPointId,
+        /// The keypoint index the point records for this keyframe, if any.
+        observed: Option<usize>,
+    },
+    /// A map point is stored under another id than its own.
+    #[error("the map point stored under {key} says it is {stored}")]
+    MapPointIdMismatch {
+        /// The id it is stored under.
+        key: MapPointId,
+        /// The id it reports.
+        stored: MapPointId,
+    },
+    /// A map point id the map has not handed out yet.
+    #[error("{point} was never issued (next map point id is {next})")]
+    UnissuedMapPointId {
+        /// The point.
+        point: MapPointId,
+        /// The next id the map would issue.
+        next: u64,
+    },
+    /// A map point position with a NaN or infinite coordinate.
+    #[error("{point} has a non-finite position")]
+    NonFinitePosition {
+        /// The point.
+        point: MapPointId,
+    },
+    /// A point records an observation by a keyframe that is not live.
+    #[error("{point} records an observation by {keyframe} (keypoint {index}), which is not live")]
+    ObservationWithoutKeyFrame {
+        /// The point.
+        point: MapPointId,
+        /// The observing keyframe.
+        keyframe: KeyFrameId,
+        /// The keypoint index recorded.
+        index: usize,
+    },
+    /// A point records an observation whose keyframe slot holds something else.
+    #[error("{point} records {keyframe} keypoint {index}, whose slot holds {slot:?}")]
+    ObservationWithoutSlot {
+        /// The point.
+        point: MapPointId,
+        /// The observing keyframe.
+        keyframe: KeyFrameId,
+        /// The keypoint index recorded.
+        index: usize,
+        /// What the slot holds (`None`: nothing, or the index is out of range).
+        slot: Option<MapPointId>,
+    },
+    /// A point's weighted observation count is not the sum of its
+    /// observations' weights (2 with a stereo measurement, 1 without).
+    #[error("{point} counts {stored} weighted observations; its observations weigh {expected}")]
+    WeightedObservationsMismatch {
+        /// The point.
+        point: MapPointId,
+        /// The count it stores.
+        stored: usize,
+        /// The sum of its observations' weights.
+        expected: usize,
+    },
+    /// An observed point whose reference keyframe neither observes it nor created it.
+    #[error("{point} has reference {reference}, which neither observes nor created it")]
+    ReferenceNotObserver {
+        /// The point.
+        point: MapPointId,
+        /// Its reference keyframe.
+        reference: KeyFrameId,
+    },
+    /// A live keyframe without a covisibility node.
+    #[error("{keyframe} has no covisibility node")]
+    MissingCovisibilityNode {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A covisibility node for a keyframe that is not live.
+    #[error("there is a covisibility node for {keyframe}, which is not live")]
+    CovisibilityNodeWithoutKeyFrame {
+        /// The node's keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A keyframe connected to itself.
+    #[error("{keyframe} has a covisibility edge to itself")]
+    CovisibilitySelfEdge {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A covisibility edge sharing no point.
+    #[error("{keyframe} has a covisibility edge of weight 0 to {other}")]
+    ZeroWeightEdge {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The other end.
+        other: KeyFrameId,
+    },
+    /// A connected keyframe whose weight in the ordered list differs from
+    /// the node's weight map (or is missing from it).
+    #[error("{keyframe} lists {other} with weight {listed} but its weight map has {weight:?}")]
+    ConnectionWeightMismatch {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The connected keyframe.
+        other: KeyFrameId,
+        /// The weight in the ordered list.
+        listed: usize,
+        /// The weight in the weight map.
+        weight: Option<usize>,
+    },
+    /// Connected keyframes not in (decreasing weight, increasing id) order,
+    /// or listed twice.
+    #[error("{keyframe} lists {first} before {second}, against (weight, id) order")]
+    UnsortedConnections {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The entry listed first.
+        first: KeyFrameId,
+        /// The entry listed next.
+        second: KeyFrameId,
+    },
+    /// The map's first keyframe (the spanning tree's root) has a parent.
+    #[error("the root {root} has the parent {parent}")]
+    RootHasParent {
+        /// The root.
+        root: KeyFrameId,
+        /// Its parent.
+        parent: KeyFrameId,
+    },
+    /// A spanning-tree parent that is not live.
+    #[error("{keyframe} has the parent {parent}, which is not live")]
+    ParentNotLive {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// Its parent.
+        parent: KeyFrameId,
+    },
+    /// A spanning-tree parent that does not list the keyframe as a child.
+    #[error("{keyframe} has the parent {parent}, which does not list it as a child")]
+    ParentWithoutChild {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// Its parent.
+        parent: KeyFrameId,
+    },
+    /// A spanning-tree child that is not live.
+    #[error("{keyframe} has the child {child}, which is not live")]
+    ChildNotLive {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The child.
+        child: KeyFrameId,
+    },
+    /// A spanning-tree child whose parent is another keyframe (or none).
+    #[error("{keyframe} has the child {child}, whose parent is {parent:?}")]
+    ChildWithOtherParent {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The child.
+        child: KeyFrameId,
+        /// The child's parent.
+        parent: Option<KeyFrameId>,
+    },
+    /// A keyframe recorded as culled is still live.
+    #[error("{keyframe} is recorded as culled but is live")]
+    CulledKeyFrameLive {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A culled keyframe's chain of culled parents loops.
+    #[error("the parent chain of culled {keyframe} loops")]
+    CulledChainLoop {
+        /// The culled keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A point recorded as fused into another is still live.
+    #[error("{point} is recorded as fused into {into} but is live")]
+    ReplacedPointLive {
+        /// The fused point.
+        point: MapPointId,
+        /// The point it was fused into.
+        into: MapPointId,
+    },
+    /// The chain of fusions from a point loops.
+    #[error("the fusion chain from {point} loops")]
+    ReplacedChainLoop {
+        /// The fused point.
+        point: MapPointId,
+    },
+}
+
+impl Map {
+    /// Checks the map's bookkeeping and returns the first inconsistency, in
+    /// this order: keyframes (id order), then points (id order), then the
+    /// covisibility nodes and spanning tree (id order), then culled
+    /// keyframes and fused points.
+    ///
+    /// Checked:
+    /// - every keyframe is stored under its own id, which the map issued; its
+    ///   keypoints, descriptors, stereo entries and map-point slots agree in
+    ///   number; its pose is finite;
+    /// - every slot that refers to a point refers to a live point whose
+    ///   observation of that keyframe is at that index, and every observation
+    ///   of a live point is by a live keyframe whose slot at that index holds
+    ///   the point;
+    /// - every point is stored under its own id, which the map issued; its
+    ///   position is finite; its weighted observation count is the sum of
+    ///   its observations' weights (2 with a stereo measurement, 1 without);
+    ///   if it has observations, its reference keyframe is one of them or
+    ///   the keyframe that created it;
+    /// - covisibility nodes exist exactly for the live keyframes; no edge
+    ///   joins a keyframe to itself or has weight 0; each node's ordered
+    ///   connections appear in its weight map with the same weight, once,
+    ///   by decreasing weight then increasing id;
+    /// - spanning tree: the first keyframe (never culled) has no parent;
+    ///   parents and children are live and the links are mutual;
+    /// - culled keyframes are not live and their chains of culled parents do
+    ///   not loop; fused points are not live and their fusion chains do not
+    ///   loop.
+    ///
+    /// Deliberately not checked, because the map does not maintain them:
+    /// - that the reference keyframe of an observed point observes it:
+    ///   [`Map::add_map_point`] does not add the creator's observation, so a
+    ///   point seen only by other keyframes keeps its creator as reference
+    ///   (only [`Map::erase_observation`] moves the reference, and then to an
+    ///   observer);
+    /// - that covisibility edges are symmetric, have weights equal to the
+    ///   shared-point counts, or lead to live keyframes: as in ORB-SLAM3,
+    ///   [`Map::update_connections`] rewrites one keyframe's edges and only
+    ///   adds or updates the other ends of the edges it keeps, so an edge it
+    ///   drops (or keeps for fewer shared points) stays, stale, at the other
+    ///   end until that keyframe is updated too, and removing a keyframe
+    ///   only clears the ends listed in its own node. After
+    ///   `update_connections` has run on every live keyframe since the last
+    ///   change, the weights are the exact shared-point counts, and so
+    ///   symmetric;
+    /// - that the spanning tree has no cycle or that every keyframe but the
+    ///   first has a parent: a keyframe sharing no point with an older one
+    ///   gets no parent, its children lose theirs when it is removed, and
+    ///   [`Map::update_connections`] may then give a parentless keyframe one
+    ///   of its own descendants as parent;
+    /// - that a culled keyframe's parent chain reaches a live keyframe (that
+    ///   [`Map::pose_cw_of`] works for it): a keyframe culled without a
+    ///   parent leaves no record, cutting the chains through it;
+    /// - that a point's normal or distances are finite (the normal of a point
+    ///   seen from exactly opposite directions is undefined).
+    pub fn check_invariants(&self) -> Result<(), InvariantViolation> {
+        self.check_keyframes()?;
+        self.check_points()?;
+        self.check_covisibility()?;
+        self.check_history()
+    }
+
+    fn check_keyframes(&self) -> Result<(), InvariantViolation> {
+        for (&key, kf) in &self.keyframes {
+            if kf.id() != key {
+                return Err(InvariantViolation::KeyFrameIdMismatch {
+                    key,
+                    stored: kf.id(),
+                });
+            }
+            if key.0 >= self.next_keyframe {
+                return Err(InvariantViolation::UnissuedKeyFrameId {
+                    keyframe: key,
+                    next: self.next_keyframe,
+                });
+            }
+            let m = &kf.measurements;
+            if m.validate().is_err() {
+                return Err(InvariantViolation::MeasurementsMismatch {
+                    keyframe: key,
+                    keypoints: m.keypoints.len(),
+                    descriptors: m.descriptors.len(),
+                    stereo: m.stereo.len(),
+                });
+            }
+            if kf.map_points().len() != m.len() {
+                return Err(InvariantViolation::SlotCountMismatch {
+                    keyframe: key,
+                    slots: kf.map_points().len(),
+                    keypoints: m.len(),
+                });
+            }
+            let pose = kf.pose_cw();
+            if !(pose.rotation.coords.iter().all(|c| c.is_finite())
+                && pose.translation.iter().all(|c| c.is_finite()))
+            {
+                return Err(InvariantViolation::NonFinitePose { keyframe: key });
+            }
+            for (index, point) in kf.observed_points() {
+                let Some(p) = self.points.get(&point) else {
+                    return Err(InvariantViolation::SlotWithoutPoint {
+                        keyframe: key,
+                        index,
+                        point,
+                    });
+                };
+                let observed = p.observations.get(&key).copied();
+                if observed != Some(index) {
+                    return Err(InvariantViolation::SlotWithoutObservation {
+                        keyframe: key,
+                        index,
+                        point,
+                        observed,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn check_points(&self) -> Result<(), InvariantViolation> {
+        for (&key, p) in &self.points {
+            if p.id() != key {
+                return Err(InvariantViolation::MapPointIdMismatch {
+                    key,
+                    stored: p.id(),
+                });
+            }
+            if key.0 >= self.next_point {
+                return Err(InvariantViolation::UnissuedMapPointId {
+                    point: key,
+                    next: self.next_point,
+                });
+            }
+            if !p.position.iter().all(|c| c.is_finite()) {
+                return Err(InvariantViolation::NonFinitePosition { point: key });
+            }
+            let mut expected = 0;
+            for (&keyframe, &index) in &p.observations {
+                let Some(kf) = self.keyframes.get(&keyframe) else {
+                    return Err(InvariantViolation::ObservationWithoutKeyFrame {
+                        point: key,
+                        keyframe,
+                        index,
+                    });
+                };
+                let slot = kf.map_point(index);
+                if slot != Some(key) {
+                    return Err(InvariantViolation::ObservationWithoutSlot {
+                        point: key,
+                        keyframe,
+                        index,
+                        slot,
+                    });
+                }
+                expected += observation_weight(kf, index);
+            }
+            if p.weighted_observations != expected {
+                return Err(InvariantViolation::WeightedObservationsMismatch {
+                    point: key,
+                    stored: p.weighted_observations,
+                    expected,
+                });
+            }
+            let reference = p.reference_keyframe;
+            if !p.observations.is_empty()
+                && !p.observations.contains_key(&reference)
+                && reference != p.first_keyframe
+            {
+                return Err(InvariantViolation::ReferenceNotObserver {
+                    point: key,
+                    reference,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn check_covisibility(&self) -> Result<(), InvariantViolation> {
+        if let Some(&keyframe) = self
+            .keyframes
+            .keys()
+            .find(|k| !self.covisibility.contains_key(k))
+        {
+            return Err(InvariantViolation::MissingCovisibilityNode { keyframe });
+        }
+        if let Some(&keyframe) = self
+            .covisibility
+            .keys()
+            .find(|k| !self.keyframes.contains_key(k))
+        {
+            return Err(InvariantViolation::CovisibilityNodeWithoutKeyFrame { keyframe });
+        }
+        let root = self.keyframes.keys().next().copied();
+        for (&keyframe, node) in &self.covisibility {
+            if node.weights.contains_key(&keyframe)
+                || node.ordered.iter().any(|(k, _)| *k == keyframe)
+            {
+                return Err(InvariantViolation::CovisibilitySelfEdge { keyframe });
+            }
+            if let Some((&other, _)) = node.weights.iter().find(|(_, w)| **w == 0) {
+                return Err(InvariantViolation::ZeroWeightEdge { keyframe, other });
+            }
+            for &(other, listed) in &node.ordered {
+                let weight = node.weights.get(&other).copied();
+                if weight != Some(listed) {
+                    return Err(InvariantViolation::ConnectionWeightMismatch {
+                        keyframe,
+                        other,
+                        listed,
+                        weight,
+                    });
+                }
+            }
+            for pair in node.ordered.windows(2) {
+                let ((first, w1), (second, w2)) = (pair[0], pair[1]);
+                if !(w1 > w2 || (w1 == w2 && first < second)) {
+                    return Err(InvariantViolation::UnsortedConnections {
+                        keyframe,
+                        first,
+                        second,
+                    });
+                }
+            }
+            if let Some(parent) = node.parent {
+                if Some(keyframe) == root {
+                    return Err(InvariantViolation::RootHasParent {
+                        root: keyframe,
+                        parent,
+                    });
+                }
+                let Some(parent_node) = self.covisibility.get(&parent) else {
+                    return Err(InvariantViolation::ParentNotLive { keyframe, parent });
+                };
+                if !parent_node.children.contains(&keyframe) {
+                    return Err(InvariantViolation::ParentWithoutChild { keyframe, parent });
+                }
+            }
+            for &child in &node.children {
+                let Some(child_node) = self.covisibility.get(&child) else {
+                    return Err(InvariantViolation::ChildNotLive { keyframe, child });
+                };
+                if child_node.parent != Some(keyframe) {
+                    return Err(InvariantViolation::ChildWithOtherParent {
+                        keyframe,
+                        child,
+                        parent: child_node.parent,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn check_history(&self) -> Result<(), InvariantViolation> {
+        for &keyframe in self.culled.keys() {
+            if self.keyframes.contains_key(&keyframe) {
+                return Err(InvariantViolation::CulledKeyFrameLive { keyframe });
+            }
+            let mut current = keyframe;
+            for _ in 0..=self.culled.len() {
+                match self.culled.get(&current) {
+                    Some(culled) => current = culled.parent,
+                    None => break,
+                }
+            }
+            if self.culled.contains_key(&current) {
+                return Err(InvariantViolation::CulledChainLoop { keyframe });
+            }
+        }
+        for (&point, &into) in &self.replaced {
+            if self.points.contains_key(&point) {
+                return Err(InvariantViolation::ReplacedPointLive { point, into });
+            }
+            let mut current = point;
+            for _ in 0..=self.replaced.len() {
+                match self.replaced.get(&current) {
+                    Some(next) => current = *next,
+                    None => break,
+                }
+            }
+            if self.replaced.contains_key(&current) {
+                return Err(InvariantViolation::ReplacedChainLoop { point });
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    use super::InvariantViolation;
+    use crate::features::pyramid::ScaleTables;
+    use crate::features::{DescriptorSet, Keypoint};
+    use crate::map::{
+        FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor, StereoMeasurement,
+    };
+    use crate::optim::Se3;
+
+    const DIM: usize = 2;
+
+    /// `n` keypoints, every other one with a stereo measurement.
+    fn measurements(n: usize) -> FrameMeasurements {
+        FrameMeasurements {
+            keypoints: (0..n)
+                .map(|i| Keypoint {
+                    x: i as f32 * 10.0,
+                    y: 0.0,
+                    size: 31.0,
+                    angle: 0.0,
+                    response: 1.0,
+                    octave: 0,
+                })
+                .collect(),
+            descriptors: DescriptorSet::Float {
+                dim: DIM,
+                data: (0..n * DIM).map(|v| v as f32).collect(),
+            },
+            stereo: (0..n)
+                .map(|i| {
+                    (i % 2 == 0).then_some(StereoMeasurement {
+                        right_u: 0.0,
+                        depth: 5.0,
+                    })
+                })
+                .collect(),
+            scales: ScaleTables::new(1000, 1.2, 8),
+        }
+    }
+
+    /// Three keyframes all seeing the same four points, connected.
+    fn small_map() -> (Map, Vec<KeyFrameId>, Vec<MapPointId>) {
+        let mut map = Map::new();
+        let kfs: Vec<KeyFrameId> = (0..3)
+            .map(|k| {
+                let pose = Se3::new(
+                    UnitQuaternion::identity(),
+                    Vector3::new(-(k as f64), 0.0, 0.0),
+                );
+                map.add_keyframe(k, k as f64, pose, measurements(4))
+                    .expect("keyframe")
+            })
+            .collect();
+        let points: Vec<MapPointId> = (0..4)
+            .map(|i| {
+                let p = map
+                    .add_map_point(
+                        Vector3::new(i as f64, 0.0, 5.0),
+                        PointDescriptor::Float(vec![0.0; DIM].into_boxed_slice()),
+                        kfs[0],
+                    )
+                    .expect("point");
+                for kf in &kfs {
+                    map.add_observation(p, *kf, i).expect("observation");
+                }
+                p
+            })
+            .collect();
+        for kf in &kfs {
+            map.update_connections(*kf);
+        }
+        (map, kfs, points)
+    }
+
+    #[test]
+    fn a_consistent_map_passes_and_each_corruption_is_named() {
+        let (map, kfs, points) = small_map();
+        assert_eq!(map.check_invariants(), Ok(()));
+        assert_eq!(map.parent(kfs[1]), Some(kfs[0]), "the tree is populated");
+        assert_eq!(map.covisibility_weight(kfs[1], kfs[2]), 4);
+
+        // A slot pointing to a point that does not exist.
+        let (mut map, kfs, _) = small_map();
+        let ghost = MapPointId(99);
+        map.keyframes
+            .get_mut(&kfs[1])
+            .expect("kf")
+            .set_map_point(3, Some(ghost));
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::SlotWithoutPoint {
+                keyframe: kfs[1],
+                index: 3,
+                point: ghost,
+            })
+        );
+
+        // A slot emptied behind the point's back.
+        let (mut map, kfs, points) = small_map();
+        map.keyframes
+            .get_mut(&kfs[2])
+            .expect("kf")
+            .set_map_point(1, None);
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::ObservationWithoutSlot {
+                point: points[1],
+                keyframe: kfs[2],
+                index: 1,
+                slot: None,
+            })
+        );
+
+        // A wrong weighted count: keypoint 0 is stereo, so three keyframes weigh 6.
+        let (mut map, _, _) = small_map();
+        map.points
+            .get_mut(&points[0])
+            .expect("p")
+            .weighted_observations = 3;
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::WeightedObservationsMismatch {
+                point: points[0],
+                stored: 3,
+                expected: 6,
+            })
+        );
+
+        // A non-finite position.
+        let (mut map, _, _) = small_map();
+        map.points.get_mut(&points[2]).expect("p").position.x = f64::NAN;
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::NonFinitePosition { point: points[2] })
+        );
+
+        // A connection listed with a weight its weight map disagrees with.
+        let (mut map, kfs, _) = small_map();
+        let node = map.covisibility.get_mut(&kfs[0]).expect("node");
+        node.ordered[0].1 = 7;
+        let other = node.ordered[0].0;
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::ConnectionWeightMismatch {
+                keyframe: kfs[0],
+                other,
+                listed: 7,
+                weight: Some(4),
+            })
+        );
+
+        // A one-sided spanning-tree link: the parent forgets its child.
+        let (mut map, kfs, _) = small_map();
+        let parent = map.parent(kfs[2]).expect("parent");
+        map.covisibility
+            .get_mut(&parent)
+            .expect("node")
+            .children
+            .remove(&kfs[2]);
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::ParentWithoutChild {
+                keyframe: kfs[2],
+                parent,
+            })
+        );
+
+        // A covisibility node left behind by a removed keyframe.
+        let (mut map, kfs, _) = small_map();
+        let removed = map.keyframes.remove(&kfs[2]).expect("kf");
+        for (index, point) in removed.observed_points() {
+            if let Some(p) = map.points.get_mut(&point) {
+                p.observations.remove(&kfs[2]);
+                p.weighted_observations -= super::observation_weight(&removed, index);
+            }
+        }
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::CovisibilityNodeWithoutKeyFrame { keyframe: kfs[2] })
+        );
+    }
+}
+
+#[cfg(test)]
+mod scratch_unmaintained {
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    use crate::features::pyramid::ScaleTables;
+    use crate::features::{DescriptorSet, Keypoint};
+    use crate::map::{FrameMeasurements, KeyFrameId, Map, PointDescriptor};
+    use crate::optim::Se3;
+
+    fn m(n: usize) -> FrameMeasurements {
+        FrameMeasurements {
+            keypoints: (0..n)
+                .map(|i| Keypoint {
+                    x: i as f32,
+                    y: 0.0,
+                    size: 31.0,
+                    angle: 0.0,
+                    response: 1.0,
+                    octave: 0,
+                })
+                .collect(),
+            descriptors: DescriptorSet::Float {
+                dim: 2,
+                data: vec![0.0; 2 * n],
+            },
+            stereo: vec![None; n],
+            scales: ScaleTables::new(1000, 1.2, 8),
+        }
+    }
+
+    fn kfs(map: &mut Map, n: usize) -> Vec<KeyFrameId> {
+        (0..n)
+            .map(|k| {
+                map.add_keyframe(
+                    k,
+                    k as f64,
+                    Se3::new(
+                        UnitQuaternion::identity(),
+                        Vector3::new(-(k as f64), 0.0, 0.0),
+                    ),
+                    m(200),
+                )
+                .unwrap()
+            })
+            .collect()
+    }
+
+    fn group(map: &mut Map, kfs: &[KeyFrameId], observers: &[usize], n: usize, next: &mut [usize]) {
+        for _ in 0..n {
+            let p = map
+                .add_map_point(
+                    Vector3::new(0.0, 0.0, 5.0),
+                    PointDescriptor::Float(vec![0.0; 2].into_boxed_slice()),
+                    kfs[observers[0]],
+                )
+                .unwrap();
+            for &o in observers {
+                map.add_observation(p, kfs[o], next[o]).unwrap();
+                next[o] += 1;
+            }
+        }
+    }
+
+    #[test]
+    fn stale_edge_to_dead_keyframe() {
+        let mut map = Map::new();
+        let k = kfs(&mut map, 4);
+        let mut next = vec![0; 4];
+        let mut pts = Vec::new();
+        for _ in 0..16 {
+            let p = map
+                .add_map_point(
+                    Vector3::new(0.0, 0.0, 5.0),
+                    PointDescriptor::Float(vec![0.0; 2].into_boxed_slice()),
+                    k[0],
+                )
+                .unwrap();
+            for o in 0..4 {
+                map.add_observation(p, k[o], next[o]).unwrap();
+                next[o] += 1;
+            }
+            pts.push(p);
+        }
+        map.update_connections(k[1]);
+        for p in &pts {
+            map.erase_observation(*p, k[1]).unwrap();
+        }
+        map.update_connections(k[1]);
+        map.erase_keyframe(k[1]).unwrap();
+        assert_eq!(map.check_invariants(), Ok(()));
+        assert_eq!(
+            map.covisibility_weight(k[2], k[1]),
+            16,
+            "stale edge to a dead keyframe"
+        );
+        assert!(map.keyframe(k[1]).is_err());
+    }
+
+    #[test]
+    fn spanning_tree_cycle() {
+        let mut map = Map::new();
+        let k = kfs(&mut map, 5);
+        let mut next = vec![0; 5];
+        group(&mut map, &k, &[1, 2], 20, &mut next);
+        group(&mut map, &k, &[2, 3], 20, &mut next);
+        group(&mut map, &k, &[2, 4], 30, &mut next);
+        group(&mut map, &k, &[1, 4], 20, &mut next);
+        group(&mut map, &k, &[3, 4], 20, &mut next);
+        for i in 1..5 {
+            map.update_connections(k[i]);
+        }
+        assert_eq!(map.parent(k[1]), None);
+        assert_eq!(map.parent(k[3]), Some(k[2]));
+        assert_eq!(map.parent(k[4]), Some(k[2]));
+        map.erase_keyframe(k[2]).unwrap();
+        assert_eq!(map.parent(k[4]), Some(k[1]));
+        assert_eq!(map.parent(k[3]), Some(k[4]));
+        map.erase_keyframe(k[1]).unwrap();
+        assert_eq!(map.parent(k[4]), None);
+        map.update_connections(k[4]);
+        assert_eq!(map.check_invariants(), Ok(()));
+        assert_eq!(map.parent(k[4]), Some(k[3]));
+        assert_eq!(map.parent(k[3]), Some(k[4]), "cycle");
+    }
+}

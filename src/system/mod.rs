@@ -1,0 +1,21 @@
+//! The system layer: the driver that owns the threads and the atlas.
+//!
+//! - [`StereoSlam`]: the front end, tracking (on the caller's thread) and
+//!   local mapping (inline or on its [`MappingThread`]) over an [`Atlas`];
+//!   loss is never final: when relocalisation keeps failing, tracking
+//!   starts a new map (see [`crate::tracking::RELOCALISATION_PATIENCE_S`]);
+//! - [`Atlas`]: every map of a run;
+//! - [`FrameRecord`], [`SlamSummary`]: what a run reports.
+//!
+//! Layers: frame → features → tracking → map ← local mapping. This module
+//! sits above them all; nothing below imports from it.
+
+mod atlas;
+mod local_mapping_thread;
+mod records;
+mod stereo_slam;
+
+pub use atlas::{Atlas, AtlasMap, MapIndex};
+pub use local_mapping_thread::{MappingResult, MappingThread};
+pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
+pub use stereo_slam::StereoSlam;

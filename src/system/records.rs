@@ -1,0 +1,114 @@
+//! What the system reports per frame, per map and for a whole run.
+
+use serde::Serialize;
+
+use crate::map::KeyFrameId;
+use crate::mapping::MappingSummary;
+use crate::optim::Se3;
+use crate::tracking::{TrackingMethod, TrackingState};
+
+use super::atlas::MapIndex;
+
+/// Milliseconds per stage for one frame.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct FrameTimings {
+    /// Left and right extraction (in parallel), wall clock.
+    pub extraction_ms: f64,
+    /// Stereo matching.
+    pub stereo_ms: f64,
+    /// Tracking (all of it, keyframe insertion included).
+    pub tracking_ms: f64,
+    /// Local mapping (0 on frames without a new keyframe, and with local
+    /// mapping on its thread, where it is reported under its keyframe's frame).
+    pub mapping_ms: f64,
+}
+
+/// A tracked frame's pose, relative to a keyframe of one map.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RelativePose {
+    /// The atlas map it was tracked in.
+    pub map: MapIndex,
+    /// Its reference keyframe in that map.
+    pub keyframe: KeyFrameId,
+    /// `T_c,ref`.
+    pub pose: Se3,
+}
+
+/// What happened to one input frame.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameRecord {
+    /// Index in the input sequence.
+    pub index: usize,
+    /// Timestamp, seconds.
+    pub timestamp: f64,
+    /// The atlas map that was active for it.
+    pub map: MapIndex,
+    /// Tracking state after the frame.
+    pub state: TrackingState,
+    /// How its pose was found.
+    pub method: TrackingMethod,
+    /// Map points matched as inliers.
+    pub inliers: usize,
+    /// Stereo keypoints.
+    pub stereo_points: usize,
+    /// Whether it became a keyframe.
+    pub keyframe: bool,
+    /// Why the frame could not be read, when it could not (it is then
+    /// counted as lost and skipped).
+    pub unreadable: Option<String>,
+    /// The pose when tracked.
+    #[serde(skip)]
+    pub relative_pose: Option<RelativePose>,
+    /// Time per stage.
+    pub timings: FrameTimings,
+    /// Local mapping's summary when it ran.
+    pub mapping: Option<MappingSummary>,
+}
+
+/// One atlas map in a run's summary.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct MapSummary {
+    /// Its index in the atlas.
+    pub index: MapIndex,
+    /// First input frame processed in it.
+    pub first_frame: usize,
+    /// Input frames processed while it was active.
+    pub frames: usize,
+    /// Frames tracked in it.
+    pub tracked: usize,
+    /// Live keyframes.
+    pub keyframes: usize,
+    /// Live map points.
+    pub map_points: usize,
+    /// For maps after the first: the input frame whose pose (the last one
+    /// known before the map began) anchors the map's first pose in the
+    /// trajectory, which is in the first map's frame.
+    pub anchored_at_frame: Option<usize>,
+}
+
+/// Totals over the frames processed so far.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct SlamSummary {
+    /// Frames processed.
+    pub frames: usize,
+    /// Frames with a tracked pose (initialisation included).
+    pub tracked: usize,
+    /// Frames processed while lost (tracking failures and unreadable frames).
+    pub lost: usize,
+    /// Of `lost`: frames that could not be read.
+    pub unreadable: usize,
+    /// Frames before initialisation (of the first map, or of a new map).
+    pub not_initialised: usize,
+    /// Relocalisations.
+    pub relocalisations: usize,
+    /// Keyframes inserted.
+    pub keyframes_inserted: usize,
+    /// Live keyframes in all maps.
+    pub keyframes: usize,
+    /// Live map points in all maps.
+    pub map_points: usize,
+    /// The atlas maps, oldest first.
+    pub maps: Vec<MapSummary>,
+    /// Mean time per stage, ms.
+    pub mean_timings: FrameTimings,
+}

@@ -1,0 +1,475 @@
+//! The stereo SLAM driver: front end, tracking and local mapping over the
+//! atlas. Local mapping runs either inline, right after each new keyframe
+//! (deterministic: tests and benchmarks), or on its own thread
+//! ([`StereoSlam::spawn_mapping_thread`]) as in ORB-SLAM3, fed keyframes
+//! through a channel while the next frame is extracted and tracked.
+
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use crate::camera::StereoRig;
+use crate::error::SlamError;
+use crate::features::GrayImageView;
+use crate::map::{KeyFrameId, SharedMap};
+use crate::mapping::{LocalMapper, MappingSummary};
+use crate::optim::{LieGroup, Se3};
+use crate::tracking::{StereoFeatures, StereoFrontend, Tracker, TrackingMethod, TrackingState};
+
+use super::atlas::{Atlas, MapIndex};
+use super::local_mapping_thread::{MappingResult, MappingThread};
+use super::records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
+
+/// Where local mapping runs.
+#[derive(Debug)]
+enum Mapping {
+    /// On the tracking thread, right after each keyframe.
+    Inline(LocalMapper),
+    /// On its own thread; keyframe id → index of the record that made it.
+    Thread {
+        thread: MappingThread,
+        waiting: BTreeMap<KeyFrameId, usize>,
+    },
+}
+
+/// Stereo SLAM over a sequence of rectified pairs.
+///
+/// Threads: tracking runs on the caller's thread, local mapping inline or
+/// on its own thread. Loop closing (the next stage) gets its thread here
+/// too, fed by local mapping's processed keyframes as ORB-SLAM3's
+/// `LoopClosing`, and merges atlas maps.
+pub struct StereoSlam {
+    rig: StereoRig,
+    frontend: StereoFrontend,
+    tracker: Tracker,
+    mapping: Mapping,
+    atlas: Atlas,
+    records: Vec<FrameRecord>,
+}
+
+impl StereoSlam {
+    /// A system with an empty atlas (one empty map), mapping inline.
+    pub fn new(rig: StereoRig, frontend: StereoFrontend) -> Self {
+        Self {
+            rig,
+            frontend,
+            tracker: Tracker::new(rig),
+            mapping: Mapping::Inline(LocalMapper::new(rig)),
+            atlas: Atlas::new(),
+            records: Vec::new(),
+        }
+    }
+
+    /// The active map.
+    pub fn map(&self) -> &SharedMap {
+        &self.atlas.active().map
+    }
+
+    /// Every map made so far.
+    pub fn atlas(&self) -> &Atlas {
+        &self.atlas
+    }
+
+    /// The local mapper (to switch BA or culling off); `None` while it
+    /// runs on its own thread.
+    pub fn mapper_mut(&mut self) -> Option<&mut LocalMapper> {
+        match &mut self.mapping {
+            Mapping::Inline(mapper) => Some(mapper),
+            Mapping::Thread { .. } => None,
+        }
+    }
+
+    /// Moves local mapping to its own thread (no-op when it already is).
+    /// A failed spawn is an error, and mapping stays inline.
+    pub fn spawn_mapping_thread(&mut self) -> Result<(), SlamError> {
+        let Mapping::Inline(mapper) = &mut self.mapping else {
+            return Ok(());
+        };
+        let keep = mapper.fresh();
+        let mapper = std::mem::replace(mapper, keep);
+        let thread = MappingThread::spawn(mapper, self.atlas.active().map.clone())?;
+        self.mapping = Mapping::Thread {
+            thread,
+            waiting: BTreeMap::new(),
+        };
+        Ok(())
+    }
+
+    /// Extracts a stereo pair's features (left and right in parallel)
+    /// without tracking them; see [`Self::process_features`].
+    pub fn extract(
+        &mut self,
+        index: usize,
+        left: GrayImageView<'_>,
+        right: GrayImageView<'_>,
+    ) -> Result<StereoFeatures, SlamError> {
+        self.frontend.extract(index, left, right)
+    }
+
+    /// Starts over: an empty atlas, tracking not initialised, no records
+    /// (ORB-SLAM3's `Reset`). Local mapping stays where it runs and keeps
+    /// its switches.
+    pub fn reset(&mut self) -> Result<(), SlamError> {
+        let threaded = matches!(self.mapping, Mapping::Thread { .. });
+        self.finish()?;
+        if let Mapping::Inline(mapper) = &mut self.mapping {
+            *mapper = mapper.fresh();
+        }
+        self.atlas = Atlas::new();
+        self.tracker = Tracker::new(self.rig);
+        self.records.clear();
+        if threaded {
+            self.spawn_mapping_thread()?;
+        }
+        Ok(())
+    }
+
+    /// Waits for local mapping to finish every queued keyframe and brings
+    /// it back inline. Call before reading the final trajectory.
+    pub fn finish(&mut self) -> Result<(), SlamError> {
+        let Mapping::Thread { .. } = self.mapping else {
+            return Ok(());
+        };
+        let placeholder = Mapping::Inline(LocalMapper::new(self.rig));
+        let Mapping::Thread {
+            thread,
+            mut waiting,
+        } = std::mem::replace(&mut self.mapping, placeholder)
+        else {
+            return Ok(());
+        };
+        let (mapper, results) = thread.finish()?;
+        self.mapping = Mapping::Inline(mapper);
+        self.attach(results, &mut waiting)
+    }
+
+    /// Files local mapping's results under the frames that made the keyframes.
+    fn attach(
+        &mut self,
+        results: Vec<MappingResult>,
+        waiting: &mut BTreeMap<KeyFrameId, usize>,
+    ) -> Result<(), SlamError> {
+        for result in results {
+            let summary = result.summary?;
+            if let Some(record) = waiting
+                .remove(&result.keyframe)
+                .and_then(|i| self.records.get_mut(i))
+            {
+                record.timings.mapping_ms = summary.elapsed_ms;
+                record.mapping = Some(summary);
+            }
+        }
+        Ok(())
+    }
+
+    fn poll_mapping(&mut self) -> Result<(), SlamError> {
+        let Mapping::Thread { thread, waiting } = &mut self.mapping else {
+            return Ok(());
+        };
+        let results = thread.poll()?;
+        let mut waiting = std::mem::take(waiting);
+        let attached = self.attach(results, &mut waiting);
+        if let Mapping::Thread { waiting: w, .. } = &mut self.mapping {
+            *w = waiting;
+        }
+        attached
+    }
+
+    /// Gives the active map up and starts a new one from frame `index`:
+    /// local mapping finishes the old map's queue, then works on the new
+    /// map with fresh state; tracking starts uninitialised.
+    fn start_new_map(&mut self, index: usize) -> Result<(), SlamError> {
+        let threaded = matches!(self.mapping, Mapping::Thread { .. });
+        self.finish()?;
+        if let Mapping::Inline(mapper) = &mut self.mapping {
+            *mapper = mapper.fresh();
+        }
+        let new_map = self.atlas.start_new_map(index);
+        tracing::info!(
+            frame = index,
+            map = new_map,
+            "tracking lost for good: new map"
+        );
+        self.tracker = Tracker::new(self.rig);
+        if threaded {
+            self.spawn_mapping_thread()?;
+        }
+        Ok(())
+    }
+
+    /// The extractor's name.
+    pub fn extractor_name(&self) -> &str {
+        self.frontend.extractor_name()
+    }
+
+    /// The frames processed so far.
+    pub fn records(&self) -> &[FrameRecord] {
+        &self.records
+    }
+
+    /// Processes one rectified stereo pair.
+    pub fn process(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        left: GrayImageView<'_>,
+        right: GrayImageView<'_>,
+    ) -> Result<&FrameRecord, SlamError> {
+        let start = Instant::now();
+        let features = self.frontend.extract(index, left, right)?;
+        let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.process_features(index, timestamp, features, left, right, extraction_ms)
+    }
+
+    /// Records an input frame that could not be read (a missing or corrupt
+    /// image): it counts as lost, keeps the previous pose in the
+    /// trajectory, and tracking goes on with the next frame.
+    pub fn skip_unreadable(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        reason: String,
+    ) -> &FrameRecord {
+        let state = match self.tracker.state() {
+            TrackingState::NotInitialised => TrackingState::NotInitialised,
+            _ => TrackingState::Lost,
+        };
+        self.records.push(FrameRecord {
+            index,
+            timestamp,
+            map: self.atlas.active().index,
+            state,
+            method: TrackingMethod::None,
+            inliers: 0,
+            stereo_points: 0,
+            keyframe: false,
+            unreadable: Some(reason),
+            relative_pose: None,
+            timings: FrameTimings::default(),
+            mapping: None,
+        });
+        let last = self.records.len() - 1;
+        &self.records[last]
+    }
+
+    /// Processes a stereo pair whose features were extracted already
+    /// (benchmarks time everything but extraction this way);
+    /// `extraction_ms` goes into the record.
+    pub fn process_features(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        features: StereoFeatures,
+        left: GrayImageView<'_>,
+        right: GrayImageView<'_>,
+        extraction_ms: f64,
+    ) -> Result<&FrameRecord, SlamError> {
+        self.poll_mapping()?;
+        if self.tracker.should_start_new_map(index) {
+            self.start_new_map(index)?;
+        }
+        let (frame, stereo_ms) = self
+            .frontend
+            .match_frame(index, timestamp, features, left, right, &self.rig)?;
+        let stereo_points = frame.stereo_count();
+        let queue = match &self.mapping {
+            Mapping::Thread { thread, .. } => thread.pending(),
+            Mapping::Inline(_) => 0,
+        };
+        if queue > 0 {
+            tracing::debug!(frame = index, queue, "local mapping busy");
+        }
+        let active = self.atlas.active();
+        let (map_index, map) = (active.index, active.map.clone());
+        let start = Instant::now();
+        let outcome = self.tracker.track(frame, &map, queue)?;
+        let tracking_ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut mapping: Option<MappingSummary> = None;
+        if let Some((kf, created)) = &outcome.new_keyframe {
+            match &mut self.mapping {
+                Mapping::Inline(mapper) => {
+                    mapping = Some(mapper.process_keyframe(&map, *kf, created, &|| false)?);
+                }
+                Mapping::Thread { thread, waiting } => {
+                    thread.submit(*kf, created.clone())?;
+                    waiting.insert(*kf, self.records.len());
+                }
+            }
+        }
+        let mapping_ms = mapping.as_ref().map_or(0.0, |m| m.elapsed_ms);
+        self.records.push(FrameRecord {
+            index,
+            timestamp,
+            map: map_index,
+            state: outcome.state,
+            method: outcome.method,
+            inliers: outcome.inliers,
+            stereo_points,
+            keyframe: outcome.new_keyframe.is_some(),
+            unreadable: None,
+            relative_pose: outcome.relative_pose.map(|(keyframe, pose)| RelativePose {
+                map: map_index,
+                keyframe,
+                pose,
+            }),
+            timings: FrameTimings {
+                extraction_ms,
+                stereo_ms,
+                tracking_ms,
+                mapping_ms,
+            },
+            mapping,
+        });
+        let last = self.records.len() - 1;
+        Ok(&self.records[last])
+    }
+
+    /// The tracking state now.
+    pub fn state(&self) -> TrackingState {
+        self.tracker.state()
+    }
+
+    /// Every processed frame's camera-to-world pose `T_wc`, one row per
+    /// input frame, from its reference keyframe's current pose.
+    ///
+    /// A frame without a pose (before initialisation, lost, unreadable)
+    /// repeats the previous pose (identity at first). The world is the
+    /// first map's frame; a later map is anchored so that its first
+    /// tracked frame sits at the last pose known before it began (see
+    /// [`MapSummary::anchored_at_frame`]): the motion during the gap is
+    /// unknown, and the map's drift from there on is its own.
+    pub fn trajectory(&self) -> Result<Vec<(f64, Se3)>, SlamError> {
+        Ok(self
+            .anchored_poses()?
+            .into_iter()
+            .map(|(t, pose, _)| (t, pose))
+            .collect())
+    }
+
+    /// `(timestamp, T_wc, (map, anchor frame) for a map's first pose)` per record.
+    #[allow(clippy::type_complexity)]
+    fn anchored_poses(&self) -> Result<Vec<(f64, Se3, Option<(MapIndex, usize)>)>, SlamError> {
+        // Map → T_world,map.
+        let mut anchors: BTreeMap<MapIndex, Se3> = BTreeMap::new();
+        let mut previous = Se3::identity();
+        let mut previous_frame = None;
+        let mut out = Vec::with_capacity(self.records.len());
+        for record in &self.records {
+            let mut anchored = None;
+            if let Some(rel) = record.relative_pose {
+                let Some(entry) = self.atlas.get(rel.map) else {
+                    return Err(SlamError::UnknownAtlasMap { map: rel.map });
+                };
+                let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+                if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
+                    // T_map,c
+                    let in_map = rel.pose.compose(&kf_pose).inverse();
+                    let anchor = *anchors.entry(rel.map).or_insert_with(|| {
+                        if rel.map > 0 {
+                            anchored = Some((rel.map, previous_frame.unwrap_or(record.index)));
+                        }
+                        previous.compose(&in_map.inverse())
+                    });
+                    previous = anchor.compose(&in_map);
+                    previous_frame = Some(record.index);
+                }
+            }
+            out.push((record.timestamp, previous, anchored));
+        }
+        Ok(out)
+    }
+
+    /// The live keyframes' `(timestamp, T_wc)` of every map, in the
+    /// trajectory's world frame, in creation order (map by map).
+    pub fn keyframe_trajectory(&self) -> Result<Vec<(f64, Se3)>, SlamError> {
+        let anchors = self.map_anchors()?;
+        let mut out = Vec::new();
+        for entry in self.atlas.maps() {
+            let Some(anchor) = anchors.get(&entry.index) else {
+                continue;
+            };
+            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+            out.extend(
+                map.keyframes()
+                    .map(|kf| (kf.timestamp, anchor.compose(&kf.pose_wc()))),
+            );
+        }
+        Ok(out)
+    }
+
+    /// `T_world,map` of every map with a tracked frame.
+    fn map_anchors(&self) -> Result<BTreeMap<MapIndex, Se3>, SlamError> {
+        let poses = self.anchored_poses()?;
+        let mut anchors = BTreeMap::new();
+        for (record, (_, world_pose, _)) in self.records.iter().zip(&poses) {
+            let Some(rel) = record.relative_pose else {
+                continue;
+            };
+            if anchors.contains_key(&rel.map) {
+                continue;
+            }
+            let Some(entry) = self.atlas.get(rel.map) else {
+                continue;
+            };
+            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+            if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
+                let in_map = rel.pose.compose(&kf_pose).inverse();
+                anchors.insert(rel.map, world_pose.compose(&in_map.inverse()));
+            }
+        }
+        Ok(anchors)
+    }
+
+    /// Totals so far.
+    pub fn summary(&self) -> Result<SlamSummary, SlamError> {
+        let mut s = SlamSummary {
+            frames: self.records.len(),
+            ..SlamSummary::default()
+        };
+        for entry in self.atlas.maps() {
+            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+            s.keyframes += map.keyframe_count();
+            s.map_points += map.map_point_count();
+            s.maps.push(MapSummary {
+                index: entry.index,
+                first_frame: entry.first_frame,
+                keyframes: map.keyframe_count(),
+                map_points: map.map_point_count(),
+                ..MapSummary::default()
+            });
+        }
+        for (_, _, anchored) in self.anchored_poses()? {
+            if let Some((map, frame)) = anchored {
+                if let Some(m) = s.maps.get_mut(map) {
+                    m.anchored_at_frame = Some(frame);
+                }
+            }
+        }
+        let mut sum = FrameTimings::default();
+        for r in &self.records {
+            match r.state {
+                TrackingState::Ok => s.tracked += 1,
+                TrackingState::Lost => s.lost += 1,
+                TrackingState::NotInitialised => s.not_initialised += 1,
+            }
+            if let Some(m) = s.maps.get_mut(r.map) {
+                m.frames += 1;
+                m.tracked += usize::from(r.state == TrackingState::Ok);
+            }
+            s.unreadable += usize::from(r.unreadable.is_some());
+            s.relocalisations += usize::from(r.method == TrackingMethod::Relocalisation);
+            s.keyframes_inserted += usize::from(r.keyframe);
+            sum.extraction_ms += r.timings.extraction_ms;
+            sum.stereo_ms += r.timings.stereo_ms;
+            sum.tracking_ms += r.timings.tracking_ms;
+            sum.mapping_ms += r.timings.mapping_ms;
+        }
+        let n = self.records.len().max(1) as f64;
+        s.mean_timings = FrameTimings {
+            extraction_ms: sum.extraction_ms / n,
+            stereo_ms: sum.stereo_ms / n,
+            tracking_ms: sum.tracking_ms / n,
+            mapping_ms: sum.mapping_ms / n,
+        };
+        Ok(s)
+    }
+}
