@@ -22,3 +22,6 @@ pub mod optim;
 pub mod settings;
 pub mod system;
 pub mod tracking;
+
+#[cfg(test)]
+mod test_world;

@@ -628,7 +628,7 @@ mod tests {
 
     #[test]
     fn a_consistent_map_passes_and_each_corruption_is_named() {
-        let (map, kfs, points) = small_map();
+        let (map, kfs, _) = small_map();
         assert_eq!(map.check_invariants(), Ok(()));
         assert_eq!(map.parent(kfs[1]), Some(kfs[0]), "the tree is populated");
         assert_eq!(map.covisibility_weight(kfs[1], kfs[2]), 4);
@@ -666,7 +666,7 @@ mod tests {
         );
 
         // A wrong weighted count: keypoint 0 is stereo, so three keyframes weigh 6.
-        let (mut map, _, _) = small_map();
+        let (mut map, _, points) = small_map();
         map.points
             .get_mut(&points[0])
             .expect("p")
@@ -681,7 +681,7 @@ mod tests {
         );
 
         // A non-finite position.
-        let (mut map, _, _) = small_map();
+        let (mut map, _, points) = small_map();
         map.points.get_mut(&points[2]).expect("p").position.x = f64::NAN;
         assert_eq!(
             map.check_invariants(),
@@ -732,131 +732,5 @@ mod tests {
             map.check_invariants(),
             Err(InvariantViolation::CovisibilityNodeWithoutKeyFrame { keyframe: kfs[2] })
         );
-    }
-}
-
-#[cfg(test)]
-mod scratch_unmaintained {
-    use nalgebra::{UnitQuaternion, Vector3};
-
-    use crate::features::pyramid::ScaleTables;
-    use crate::features::{DescriptorSet, Keypoint};
-    use crate::map::{FrameMeasurements, KeyFrameId, Map, PointDescriptor};
-    use crate::optim::Se3;
-
-    fn m(n: usize) -> FrameMeasurements {
-        FrameMeasurements {
-            keypoints: (0..n)
-                .map(|i| Keypoint {
-                    x: i as f32,
-                    y: 0.0,
-                    size: 31.0,
-                    angle: 0.0,
-                    response: 1.0,
-                    octave: 0,
-                })
-                .collect(),
-            descriptors: DescriptorSet::Float {
-                dim: 2,
-                data: vec![0.0; 2 * n],
-            },
-            stereo: vec![None; n],
-            scales: ScaleTables::new(1000, 1.2, 8),
-        }
-    }
-
-    fn kfs(map: &mut Map, n: usize) -> Vec<KeyFrameId> {
-        (0..n)
-            .map(|k| {
-                map.add_keyframe(
-                    k,
-                    k as f64,
-                    Se3::new(
-                        UnitQuaternion::identity(),
-                        Vector3::new(-(k as f64), 0.0, 0.0),
-                    ),
-                    m(200),
-                )
-                .unwrap()
-            })
-            .collect()
-    }
-
-    fn group(map: &mut Map, kfs: &[KeyFrameId], observers: &[usize], n: usize, next: &mut [usize]) {
-        for _ in 0..n {
-            let p = map
-                .add_map_point(
-                    Vector3::new(0.0, 0.0, 5.0),
-                    PointDescriptor::Float(vec![0.0; 2].into_boxed_slice()),
-                    kfs[observers[0]],
-                )
-                .unwrap();
-            for &o in observers {
-                map.add_observation(p, kfs[o], next[o]).unwrap();
-                next[o] += 1;
-            }
-        }
-    }
-
-    #[test]
-    fn stale_edge_to_dead_keyframe() {
-        let mut map = Map::new();
-        let k = kfs(&mut map, 4);
-        let mut next = vec![0; 4];
-        let mut pts = Vec::new();
-        for _ in 0..16 {
-            let p = map
-                .add_map_point(
-                    Vector3::new(0.0, 0.0, 5.0),
-                    PointDescriptor::Float(vec![0.0; 2].into_boxed_slice()),
-                    k[0],
-                )
-                .unwrap();
-            for o in 0..4 {
-                map.add_observation(p, k[o], next[o]).unwrap();
-                next[o] += 1;
-            }
-            pts.push(p);
-        }
-        map.update_connections(k[1]);
-        for p in &pts {
-            map.erase_observation(*p, k[1]).unwrap();
-        }
-        map.update_connections(k[1]);
-        map.erase_keyframe(k[1]).unwrap();
-        assert_eq!(map.check_invariants(), Ok(()));
-        assert_eq!(
-            map.covisibility_weight(k[2], k[1]),
-            16,
-            "stale edge to a dead keyframe"
-        );
-        assert!(map.keyframe(k[1]).is_err());
-    }
-
-    #[test]
-    fn spanning_tree_cycle() {
-        let mut map = Map::new();
-        let k = kfs(&mut map, 5);
-        let mut next = vec![0; 5];
-        group(&mut map, &k, &[1, 2], 20, &mut next);
-        group(&mut map, &k, &[2, 3], 20, &mut next);
-        group(&mut map, &k, &[2, 4], 30, &mut next);
-        group(&mut map, &k, &[1, 4], 20, &mut next);
-        group(&mut map, &k, &[3, 4], 20, &mut next);
-        for i in 1..5 {
-            map.update_connections(k[i]);
-        }
-        assert_eq!(map.parent(k[1]), None);
-        assert_eq!(map.parent(k[3]), Some(k[2]));
-        assert_eq!(map.parent(k[4]), Some(k[2]));
-        map.erase_keyframe(k[2]).unwrap();
-        assert_eq!(map.parent(k[4]), Some(k[1]));
-        assert_eq!(map.parent(k[3]), Some(k[4]));
-        map.erase_keyframe(k[1]).unwrap();
-        assert_eq!(map.parent(k[4]), None);
-        map.update_connections(k[4]);
-        assert_eq!(map.check_invariants(), Ok(()));
-        assert_eq!(map.parent(k[4]), Some(k[3]));
-        assert_eq!(map.parent(k[3]), Some(k[4]), "cycle");
     }
 }

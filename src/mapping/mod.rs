@@ -267,3 +267,6 @@ impl LocalMapper {
         Ok(culled)
     }
 }
+
+#[cfg(test)]
+mod stage_tests;

@@ -316,7 +316,7 @@ fn highway(config: &SyntheticConfig, step: f64) -> Scene {
     let mut z = 60.0 + rng.uniform(0.0, 40.0);
     let mut k = 0u64;
     while z < end - 60.0 {
-        let span = if k % 2 == 0 {
+        let span = if k.is_multiple_of(2) {
             [-105.0, -48.0]
         } else {
             [63.0, 135.0]

@@ -1,0 +1,192 @@
+//! The frame loop of `spslam run`: reads each pair, tracks it, skips (or,
+//! with `--strict`, stops at) a frame that cannot be read, and stops
+//! between frames when a signal asks it to. It never returns early with an
+//! error: every way it ends is a [`RunEnd`], so that the caller writes the
+//! outputs of the frames processed so far on every path.
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+
+use indicatif::ProgressBar;
+use spslam::dataset::StereoFrame;
+use spslam::error::SlamError;
+use spslam::system::StereoSlam;
+
+use super::signals::StopRequest;
+use super::source::{Source, Unreadable, UnreadableCause};
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunEnd {
+    /// Every requested frame was processed (unreadable ones skipped).
+    Complete,
+    /// A signal stopped it between two frames.
+    Interrupted {
+        /// The signal's name (`SIGINT`, `SIGTERM`).
+        signal: &'static str,
+    },
+    /// A fatal error (or `--strict` at an unreadable frame) stopped it.
+    Failed {
+        /// What went wrong.
+        error: String,
+    },
+}
+
+impl RunEnd {
+    /// Whether every requested frame was processed.
+    pub fn is_complete(&self) -> bool {
+        matches!(self, Self::Complete)
+    }
+
+    /// `complete`, `interrupted` or `failed: <error>`, as report.json's `end`.
+    pub fn label(&self) -> String {
+        match self {
+            Self::Complete => "complete".into(),
+            Self::Interrupted { .. } => "interrupted".into(),
+            Self::Failed { error } => format!("failed: {error}"),
+        }
+    }
+
+    /// The signal that interrupted the run, if one did.
+    pub fn signal(&self) -> Option<&'static str> {
+        match self {
+            Self::Interrupted { signal } => Some(signal),
+            _ => None,
+        }
+    }
+}
+
+/// An input frame that was skipped because it could not be read.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct UnreadableFrame {
+    /// Its index in the input sequence.
+    pub index: usize,
+    /// The image at fault.
+    pub path: PathBuf,
+    /// Why it could not be used.
+    pub reason: String,
+}
+
+/// What the frame loop needs besides the system.
+pub struct FrameLoop<'a> {
+    /// Where the images come from.
+    pub source: &'a Source,
+    /// The frames requested.
+    pub frames: &'a [StereoFrame],
+    /// The first frame's image size: every image must have it.
+    pub size: (usize, usize),
+    /// Stop at the first unreadable frame instead of skipping it.
+    pub strict: bool,
+    /// Polled between frames.
+    pub stop: &'a StopRequest,
+    /// The progress bar; messages are printed above it.
+    pub bar: &'a ProgressBar,
+}
+
+/// One frame's outcome that is not a tracked record.
+enum FrameError {
+    /// The frame cannot be used: skip it (or stop, with `--strict`).
+    Unreadable(Unreadable),
+    /// The system failed: stop the run.
+    Fatal(String),
+}
+
+impl FrameLoop<'_> {
+    /// Processes the frames in order until the end, a signal or a fatal
+    /// error; unreadable frames are recorded in `slam` as lost and listed
+    /// in `unreadable`.
+    pub fn run(&self, slam: &mut StereoSlam, unreadable: &mut Vec<UnreadableFrame>) -> RunEnd {
+        for (index, frame) in self.frames.iter().enumerate() {
+            if let Some(signal) = self.stop.requested() {
+                return RunEnd::Interrupted { signal };
+            }
+            match self.step(slam, index, frame) {
+                Ok(()) => {}
+                Err(FrameError::Unreadable(e)) if self.strict => {
+                    return RunEnd::Failed {
+                        error: format!("frame {index} cannot be read (--strict): {e}"),
+                    };
+                }
+                Err(FrameError::Unreadable(e)) => {
+                    self.bar.suspend(|| {
+                        eprintln!("warning: frame {index} skipped (counted as lost): {e}");
+                    });
+                    slam.skip_unreadable(index, frame.timestamp, e.to_string());
+                    unreadable.push(UnreadableFrame {
+                        index,
+                        path: e.path,
+                        reason: e.cause.to_string(),
+                    });
+                }
+                Err(FrameError::Fatal(error)) => {
+                    return RunEnd::Failed {
+                        error: format!("frame {index}: {error}"),
+                    };
+                }
+            }
+            self.bar.inc(1);
+        }
+        RunEnd::Complete
+    }
+
+    /// Reads and tracks one frame.
+    fn step(
+        &self,
+        slam: &mut StereoSlam,
+        index: usize,
+        frame: &StereoFrame,
+    ) -> Result<(), FrameError> {
+        let (left, right) = self
+            .source
+            .load(frame, Some(self.size))
+            .map_err(FrameError::Unreadable)?;
+        // A panic in the system (a bug) ends the run like a fatal error,
+        // so that the frames before it are still written.
+        let outcome = catch_unwind(AssertUnwindSafe(|| {
+            slam.process(index, frame.timestamp, left.view(), right.view())
+                .map(|record| (record.state, record.inliers))
+        }));
+        match outcome {
+            Ok(Ok((state, inliers))) => {
+                tracing::debug!(frame = index, ?state, inliers, "frame processed");
+                self.bar.set_message(format!("{state:?}, {inliers} inliers"));
+                Ok(())
+            }
+            Ok(Err(e)) => Err(classify(e, frame)),
+            Err(payload) => {
+                let message = payload
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| payload.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "unknown panic".into());
+                Err(FrameError::Fatal(format!("the system panicked: {message}")))
+            }
+        }
+    }
+}
+
+/// Per-frame input errors make the frame unreadable; the others are fatal.
+fn classify(error: SlamError, frame: &StereoFrame) -> FrameError {
+    match error {
+        SlamError::ImageSizeMismatch {
+            left_width,
+            left_height,
+            right_width,
+            right_height,
+            ..
+        } => FrameError::Unreadable(Unreadable {
+            path: frame.right.clone(),
+            cause: UnreadableCause::StereoSizeMismatch {
+                left_width,
+                left_height,
+                right_width,
+                right_height,
+            },
+        }),
+        SlamError::Features { source, .. } => FrameError::Unreadable(Unreadable {
+            path: frame.left.clone(),
+            cause: UnreadableCause::Features(source.to_string()),
+        }),
+        other => FrameError::Fatal(other.to_string()),
+    }
+}
