@@ -9,7 +9,9 @@ use crate::camera::StereoRig;
 use crate::dataset::synthetic::SplitMix64;
 use crate::features::pyramid::ScaleTables;
 use crate::features::{DescriptorSet, FrameFeatures, Keypoint, StageTimings};
-use crate::map::{FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor, StereoMeasurement};
+use crate::map::{
+    FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor, StereoMeasurement,
+};
 use crate::optim::reprojection::PinholeStereo;
 use crate::optim::{LieGroup, Se3};
 use crate::tracking::Frame;
@@ -62,7 +64,11 @@ impl PointWorld {
         let mut uniform = |a: f64, b: f64| a + (b - a) * rng.next_unit();
         let mut points = Vec::with_capacity(n);
         for _ in 0..n {
-            points.push(Vector3::new(uniform(-w, w), uniform(-h, h), uniform(z0, z1)));
+            points.push(Vector3::new(
+                uniform(-w, w),
+                uniform(-h, h),
+                uniform(z0, z1),
+            ));
         }
         let mut descriptors = Vec::with_capacity(n);
         for _ in 0..n {

@@ -30,13 +30,13 @@ fn triangulated_points_match_the_ground_truth() {
     let mut map = Map::new();
     // Monocular keyframes 1.8 m apart: every new point needs triangulation.
     let (kf0, v0) = world.add_keyframe(&mut map, pose_at(Vector3::zeros(), 0.0), false);
-    let (kf1, v1) = world.add_keyframe(
-        &mut map,
-        pose_at(Vector3::new(1.0, 0.0, 1.5), 0.05),
-        false,
-    );
+    let (kf1, v1) = world.add_keyframe(&mut map, pose_at(Vector3::new(1.0, 0.0, 1.5), 0.05), false);
     let (in0, in1) = (keypoint_of(&v0), keypoint_of(&v1));
-    let shared: Vec<usize> = in0.keys().filter(|p| in1.contains_key(p)).copied().collect();
+    let shared: Vec<usize> = in0
+        .keys()
+        .filter(|p| in1.contains_key(p))
+        .copied()
+        .collect();
     assert!(shared.len() > 300, "only {} shared points", shared.len());
     // 40 existing points connect the two keyframes in the covisibility graph.
     for &p in shared.iter().take(40) {
@@ -76,7 +76,11 @@ fn triangulated_points_match_the_ground_truth() {
         expected.len()
     );
     assert!(expected.len() > 200);
-    assert!(missed * 100 <= expected.len(), "{missed} of {} missed", expected.len());
+    assert!(
+        missed * 100 <= expected.len(),
+        "{missed} of {} missed",
+        expected.len()
+    );
     assert_eq!(map.map_point_count(), before + created.len());
     let mut worst: f64 = 0.0;
     for id in created {
@@ -88,7 +92,11 @@ fn triangulated_points_match_the_ground_truth() {
         let truth = world.points[v1.point_of[i1]];
         let error = (point.position - truth).norm();
         worst = worst.max(error / truth.z);
-        assert!(error < 1e-3, "point {id:?} off by {error} m at depth {}", truth.z);
+        assert!(
+            error < 1e-3,
+            "point {id:?} off by {error} m at depth {}",
+            truth.z
+        );
     }
     println!("worst relative error {worst:.2e}");
 }
@@ -98,13 +106,13 @@ fn fusion_merges_a_planted_duplicate() {
     let world = PointWorld::new(11, 500, (12.0, 4.0, 5.0, 25.0));
     let mut map = Map::new();
     let (kf0, v0) = world.add_keyframe(&mut map, pose_at(Vector3::zeros(), 0.0), true);
-    let (kf1, v1) = world.add_keyframe(
-        &mut map,
-        pose_at(Vector3::new(0.3, 0.0, 0.8), 0.02),
-        true,
-    );
+    let (kf1, v1) = world.add_keyframe(&mut map, pose_at(Vector3::new(0.3, 0.0, 0.8), 0.02), true);
     let (in0, in1) = (keypoint_of(&v0), keypoint_of(&v1));
-    let shared: Vec<usize> = in0.keys().filter(|p| in1.contains_key(p)).copied().collect();
+    let shared: Vec<usize> = in0
+        .keys()
+        .filter(|p| in1.contains_key(p))
+        .copied()
+        .collect();
     assert!(shared.len() > 100);
     let duplicated = shared[shared.len() / 2];
     for &p in &shared {

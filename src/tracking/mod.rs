@@ -31,3 +31,6 @@ pub use relocalise::MIN_RELOCALISATION_INLIERS;
 pub use tracker::{
     TrackOutcome, Tracker, TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S,
 };
+
+#[cfg(test)]
+mod stage_tests;

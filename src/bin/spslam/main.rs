@@ -38,14 +38,17 @@ fn main() -> std::process::ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    let success = |()| std::process::ExitCode::SUCCESS;
+    // `spslam run` picks its own code (0 complete, 2 incomplete); an error
+    // from any subcommand is 1.
     let result = match cli.command {
-        Command::Extract(args) => extract::run_extract(args),
-        Command::Eval(args) => eval::run_eval(args),
-        Command::Synth(args) => synth::run_synth(args),
+        Command::Extract(args) => extract::run_extract(args).map(success),
+        Command::Eval(args) => eval::run_eval(args).map(success),
+        Command::Synth(args) => synth::run_synth(args).map(success),
         Command::Run(args) => run::run_slam(args),
     };
     match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
+        Ok(code) => code,
         Err(e) => {
             eprintln!("error: {e:#}");
             std::process::ExitCode::FAILURE

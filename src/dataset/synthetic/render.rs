@@ -1,6 +1,11 @@
 //! Ray casting: for each pixel centre, the nearest plane hit gives the gray
 //! level (box-filtered over the pixel's footprint on the surface, from ray
 //! differentials) and the depth Z in the camera frame.
+//!
+//! The image is cut into 16×16-pixel tiles, and a tile's rays are tested
+//! only against the planes that reach its viewing cone (the others cannot
+//! be hit, so the result is the same as testing every plane): a world of
+//! many small or distant planes costs little more than a few large ones.
 
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -22,6 +27,12 @@ pub struct View {
     pub depth: Vec<f32>,
 }
 
+/// Side (pixels) of the square tiles whose rays share a list of planes.
+const TILE: usize = 16;
+/// How far (pixels) a tile's cone reaches past its pixel centres: half a
+/// pixel for the pixel corners and sub-samples, one more for rounding.
+const TILE_MARGIN: f64 = 1.5;
+
 /// A plane with the per-view quantities of the intersection precomputed.
 struct Visible<'a> {
     plane: &'a Plane,
@@ -30,18 +41,60 @@ struct Visible<'a> {
     offset: f64,
     /// `eye − origin`.
     eye_from_origin: Vector3<f64>,
+    /// The rectangle's four corners relative to the eye, in the camera
+    /// frame (a skyline only cuts the rectangle down).
+    corners: [Vector3<f64>; 4],
+}
+
+impl Visible<'_> {
+    /// False when no ray `(X, Y, 1)` (camera frame) with `X ∈ [x0, x1]`,
+    /// `Y ∈ [y0, y1]` can meet the plane: all four corners (hence the whole
+    /// convex rectangle) lie outside one side of that cone.
+    fn reaches(&self, [x0, x1]: [f64; 2], [y0, y1]: [f64; 2]) -> bool {
+        let outside = |side: fn(&Vector3<f64>, f64) -> f64, bound: f64| {
+            self.corners.iter().all(|q| side(q, bound) < 0.0)
+        };
+        !(outside(|q, x0| q.x - x0 * q.z, x0)
+            || outside(|q, x1| x1 * q.z - q.x, x1)
+            || outside(|q, y0| q.y - y0 * q.z, y0)
+            || outside(|q, y1| y1 * q.z - q.y, y1))
+    }
 }
 
 /// Per-view constants shared by every row.
 struct ViewSetup<'a> {
     world: &'a World,
     visible: Vec<Visible<'a>>,
+    /// Ray of the pixel (0, 0) in the camera frame (z = 1).
+    corner_ray_camera: Vector3<f64>,
+    /// Change of the camera-frame ray per pixel along x and y.
+    inverse_focal: [f64; 2],
     /// Ray of the pixel (0, 0) in the world frame (camera z = 1).
     corner_ray: Vector3<f64>,
     /// Change of the ray per pixel along x and y.
     step_x: Vector3<f64>,
     step_y: Vector3<f64>,
     width: usize,
+    height: usize,
+}
+
+/// The visible planes each tile of a band of tile rows can see, in the
+/// order of [`ViewSetup::visible`].
+struct TilePlanes {
+    first_tile_row: usize,
+    columns: usize,
+    /// `ends[k]`: where tile `k`'s list ends in `planes` (row-major tiles).
+    ends: Vec<usize>,
+    planes: Vec<u32>,
+}
+
+impl TilePlanes {
+    /// The planes the rays of pixel `(x, y)` (±`TILE_MARGIN`) may hit.
+    fn at(&self, x: usize, y: usize) -> &[u32] {
+        let k = (y / TILE - self.first_tile_row) * self.columns + x / TILE;
+        let start = if k == 0 { 0 } else { self.ends[k - 1] };
+        &self.planes[start..self.ends[k]]
+    }
 }
 
 /// The number of threads `threads` asks for (0: every core).
@@ -65,27 +118,38 @@ pub fn render_view(
     let (width, height) = (camera.width, camera.height);
     let eye = Point3::from(pose_wc.translation.vector);
     let rotation = pose_wc.rotation.to_rotation_matrix();
+    let to_camera = rotation.transpose();
     let visible = world
         .planes
         .iter()
         .filter(|p| p.faces(&eye))
         .map(|plane| {
             let normal = plane.normal();
+            let corner = |u: f64, v: f64| to_camera * (plane.point(u, v) - eye);
             Visible {
                 plane,
                 normal,
                 offset: normal.dot(&(plane.origin - eye)),
                 eye_from_origin: eye - plane.origin,
+                corners: [
+                    corner(0.0, 0.0),
+                    corner(plane.u_length, 0.0),
+                    corner(0.0, plane.v_length),
+                    corner(plane.u_length, plane.v_length),
+                ],
             }
         })
         .collect();
     let setup = ViewSetup {
         world,
         visible,
+        corner_ray_camera: camera.ray(0.0, 0.0),
+        inverse_focal: [1.0 / camera.fx, 1.0 / camera.fy],
         corner_ray: rotation * camera.ray(0.0, 0.0),
         step_x: rotation * Vector3::new(1.0 / camera.fx, 0.0, 0.0),
         step_y: rotation * Vector3::new(0.0, 1.0 / camera.fy, 0.0),
         width,
+        height,
     };
     let mut gray = vec![0f32; width * height];
     let mut depth = if with_depth {
@@ -138,9 +202,13 @@ impl ViewSetup<'_> {
     fn render_rows(&self, first_row: usize, gray: &mut [f32], mut depth: Option<&mut [f32]>) {
         let width = self.width;
         let rows = gray.len() / width;
-        let corners = self.corner_ids(first_row, rows);
+        // The corner ids reach one row into the next chunk.
+        let last_row = (first_row + rows).min(self.height - 1);
+        let tiles = self.tile_planes(first_row / TILE..last_row / TILE + 1);
+        let corners = self.corner_ids(first_row, rows, &tiles);
         for (row_offset, gray_row) in gray.chunks_mut(width).enumerate() {
-            let y = (first_row + row_offset) as f64;
+            let row = first_row + row_offset;
+            let y = row as f64;
             for (x, pixel) in gray_row.iter_mut().enumerate() {
                 let ray = self.ray(x as f64, y);
                 let top = &corners[row_offset * (width + 1) + x..][..2];
@@ -158,7 +226,13 @@ impl ViewSetup<'_> {
                 };
                 let (value, hit) = match centre {
                     Some(hit) => (self.shade(&ray, hit.as_ref(), 1.0), hit),
-                    None => (self.supersample(x as f64, y), self.intersect(&ray)),
+                    None => {
+                        let planes = tiles.at(x, row);
+                        (
+                            self.supersample(x as f64, y, planes),
+                            self.intersect(&ray, planes),
+                        )
+                    }
                 };
                 *pixel = value as f32;
                 if let Some(depth) = depth.as_deref_mut() {
@@ -173,38 +247,80 @@ impl ViewSetup<'_> {
         self.corner_ray + self.step_x * x + self.step_y * y
     }
 
+    /// The planes each tile of the tile rows `tile_rows` can see.
+    fn tile_planes(&self, tile_rows: std::ops::Range<usize>) -> TilePlanes {
+        let columns = self.width.div_ceil(TILE);
+        let [inverse_fx, inverse_fy] = self.inverse_focal;
+        // The camera-frame cone of the tile's pixels, ± the margin, along
+        // one axis: `first` is the tile's first pixel, `corner` the ray's
+        // coordinate at pixel 0.
+        let span = |first: usize, corner: f64, inverse: f64| {
+            let low = first as f64 - TILE_MARGIN;
+            let high = (first + TILE - 1) as f64 + TILE_MARGIN;
+            [corner + low * inverse, corner + high * inverse]
+        };
+        let mut tiles = TilePlanes {
+            first_tile_row: tile_rows.start,
+            columns,
+            ends: Vec::with_capacity(tile_rows.len() * columns),
+            planes: Vec::new(),
+        };
+        for tile_row in tile_rows {
+            let ys = span(tile_row * TILE, self.corner_ray_camera.y, inverse_fy);
+            for column in 0..columns {
+                let xs = span(column * TILE, self.corner_ray_camera.x, inverse_fx);
+                let reached = self.visible.iter().enumerate();
+                tiles.planes.extend(
+                    reached
+                        .filter(|(_, v)| v.reaches(xs, ys))
+                        .map(|(index, _)| index as u32),
+                );
+                tiles.ends.push(tiles.planes.len());
+            }
+        }
+        tiles
+    }
+
     /// Which plane (or [`SKY`]) each pixel corner of rows
     /// `first_row..first_row + rows` sees: `(rows + 1) × (width + 1)` ids.
-    fn corner_ids(&self, first_row: usize, rows: usize) -> Vec<u32> {
+    /// A corner is cast among the planes of the pixel below and right of
+    /// it (the last pixel for the last row and column).
+    fn corner_ids(&self, first_row: usize, rows: usize, tiles: &TilePlanes) -> Vec<u32> {
         let mut ids = Vec::with_capacity((rows + 1) * (self.width + 1));
         for row in 0..=rows {
+            let pixel_row = (first_row + row).min(self.height - 1);
             let y = (first_row + row) as f64 - 0.5;
             for column in 0..=self.width {
                 let ray = self.ray(column as f64 - 0.5, y);
-                ids.push(self.intersect(&ray).map_or(SKY, |h| h.visible as u32));
+                let planes = tiles.at(column.min(self.width - 1), pixel_row);
+                ids.push(
+                    self.intersect(&ray, planes)
+                        .map_or(SKY, |h| h.visible as u32),
+                );
             }
         }
         ids
     }
 
-    /// The mean of 4×4 samples spread over the pixel.
-    fn supersample(&self, x: f64, y: f64) -> f64 {
+    /// The mean of 4×4 samples spread over the pixel, cast among `planes`.
+    fn supersample(&self, x: f64, y: f64, planes: &[u32]) -> f64 {
         let mut sum = 0.0;
         for dy in SUBSAMPLES {
             for dx in SUBSAMPLES {
                 let ray = self.ray(x + dx, y + dy);
-                let hit = self.intersect(&ray);
+                let hit = self.intersect(&ray, planes);
                 sum += self.shade(&ray, hit.as_ref(), 0.25);
             }
         }
         sum / 16.0
     }
 
-    /// The nearest front-side plane along `ray`.
-    fn intersect(&self, ray: &Vector3<f64>) -> Option<RayHit> {
+    /// The nearest front-side plane along `ray` among the visible planes
+    /// `planes` (in increasing order, so ties go to the earlier plane).
+    fn intersect(&self, ray: &Vector3<f64>, planes: &[u32]) -> Option<RayHit> {
         let mut best: Option<RayHit> = None;
-        for index in 0..self.visible.len() {
-            if let Some(hit) = self.intersect_plane(index, ray) {
+        for &index in planes {
+            if let Some(hit) = self.intersect_plane(index as usize, ray) {
                 if best.is_none_or(|b| hit.t < b.t) {
                     best = Some(hit);
                 }

@@ -5,7 +5,6 @@
 //! outputs of the frames processed so far on every path.
 
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::PathBuf;
 
 use indicatif::ProgressBar;
 use spslam::dataset::StereoFrame;
@@ -62,7 +61,7 @@ pub struct UnreadableFrame {
     /// Its index in the input sequence.
     pub index: usize,
     /// The image at fault.
-    pub path: PathBuf,
+    pub path: String,
     /// Why it could not be used.
     pub reason: String,
 }
@@ -114,7 +113,7 @@ impl FrameLoop<'_> {
                     slam.skip_unreadable(index, frame.timestamp, e.to_string());
                     unreadable.push(UnreadableFrame {
                         index,
-                        path: e.path,
+                        path: e.path.display().to_string(),
                         reason: e.cause.to_string(),
                     });
                 }
@@ -149,7 +148,8 @@ impl FrameLoop<'_> {
         match outcome {
             Ok(Ok((state, inliers))) => {
                 tracing::debug!(frame = index, ?state, inliers, "frame processed");
-                self.bar.set_message(format!("{state:?}, {inliers} inliers"));
+                self.bar
+                    .set_message(format!("{state:?}, {inliers} inliers"));
                 Ok(())
             }
             Ok(Err(e)) => Err(classify(e, frame)),

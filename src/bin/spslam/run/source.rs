@@ -22,7 +22,9 @@ pub enum UnreadableCause {
     #[error("cannot be decoded: {0}")]
     Undecodable(String),
     /// The image's size differs from the first frame's.
-    #[error("the image is {width}x{height}, the first frame's are {expected_width}x{expected_height}")]
+    #[error(
+        "the image is {width}x{height}, the first frame's are {expected_width}x{expected_height}"
+    )]
     SizeChanged {
         /// Its width.
         width: usize,
@@ -46,7 +48,9 @@ pub enum UnreadableCause {
         right_height: usize,
     },
     /// A raw EuRoC image whose size is not the calibration's.
-    #[error("the image is {width}x{height}, the calibration's is {expected_width}x{expected_height}")]
+    #[error(
+        "the image is {width}x{height}, the calibration's is {expected_width}x{expected_height}"
+    )]
     CalibrationSize {
         /// Its width.
         width: i32,

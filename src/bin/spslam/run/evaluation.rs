@@ -1,0 +1,115 @@
+//! A run's trajectory against the ground truth: the final-position drift,
+//! the metrics of `spslam eval` and the plots. An incomplete run is
+//! evaluated over the rows it wrote.
+
+use std::path::Path;
+
+use anyhow::Result;
+use spslam::eval::{
+    align, evaluate, report::pair_trajectories, table::report_table, write_error_plot,
+    write_trajectory_plot, Alignment, EvalOptions, EvalReport, Pairing, PlotPlane, Trajectory,
+    DEFAULT_MAX_DIFF,
+};
+
+use super::source::Source;
+
+/// The end of a run against the ground truth, both starting at frame 0's pose.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct Drift {
+    /// Distance between the final positions, metres.
+    pub final_position_m: f64,
+    /// Ground-truth path length, metres.
+    pub path_m: f64,
+    /// `final_position_m` as a percentage of `path_m`.
+    pub percent: f64,
+}
+
+/// Final-position drift of a KITTI-layout run (both trajectories start at
+/// the first frame's pose), over the frames both have.
+fn final_drift(gt: &Trajectory, estimate: &Trajectory) -> Option<Drift> {
+    let n = gt.len().min(estimate.len());
+    if n < 2 {
+        return None;
+    }
+    let g0 = gt.poses[0].inverse();
+    let e0 = estimate.poses[0].inverse();
+    let path: f64 = gt.poses[..n]
+        .windows(2)
+        .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+        .sum();
+    let g = (g0 * gt.poses[n - 1]).translation.vector;
+    let e = (e0 * estimate.poses[n - 1]).translation.vector;
+    let final_position_m = (g - e).norm();
+    Some(Drift {
+        final_position_m,
+        path_m: path,
+        percent: 100.0 * final_position_m / path.max(f64::MIN_POSITIVE),
+    })
+}
+
+/// Evaluates the run against `gt` (KITTI layout: the first rows of the
+/// ground truth, pose by pose; EuRoC: paired by timestamp), appends the
+/// figures to `text` and writes the plots (`trajectory.png`,
+/// `trajectory_errors.png`) into `out`.
+pub fn evaluate_run(
+    source: &Source,
+    gt: &Trajectory,
+    trajectory: &Trajectory,
+    out: &Path,
+    text: &mut String,
+) -> Result<(Option<EvalReport>, Option<Drift>)> {
+    let pairing = if source.is_kitti() {
+        Pairing::ByIndex
+    } else {
+        Pairing::ByTimestamp {
+            max_diff: DEFAULT_MAX_DIFF,
+            one_to_one: true,
+        }
+    };
+    let drift = if source.is_kitti() {
+        final_drift(gt, trajectory)
+    } else {
+        None
+    };
+    if let Some(d) = &drift {
+        text.push_str(&format!(
+            "final-position drift {:.3} m over a {:.1} m path ({:.2} %)\n",
+            d.final_position_m, d.path_m, d.percent
+        ));
+    }
+    let options = EvalOptions {
+        pairing,
+        ..EvalOptions::default()
+    };
+    let report = match evaluate(gt, trajectory, &options) {
+        Ok(report) => report,
+        Err(e) => {
+            text.push_str(&format!(
+                "ATE/RPE not computed: {e} (a straight path cannot be aligned; the drift above is unaligned)\n"
+            ));
+            return Ok((None, drift));
+        }
+    };
+    text.push_str(&report_table(&report));
+    let pair = pair_trajectories(gt, trajectory, pairing)?;
+    // KITTI-layout runs are plotted as given (from above, x–z); EuRoC after
+    // SE3 alignment (x–y).
+    let (estimate, plane) = if source.is_kitti() {
+        (pair.estimate.clone(), PlotPlane::Xz)
+    } else {
+        (
+            align(&pair.reference, &pair.estimate, Alignment::Se3)?,
+            PlotPlane::Xy,
+        )
+    };
+    let plot = out.join("trajectory.png");
+    let errors = out.join("trajectory_errors.png");
+    write_trajectory_plot(&pair.reference, &estimate, &plot, plane)?;
+    write_error_plot(&pair.reference, &estimate, &errors)?;
+    text.push_str(&format!(
+        "plots: {} and {}\n",
+        plot.display(),
+        errors.display()
+    ));
+    Ok((Some(report), drift))
+}

@@ -1,0 +1,265 @@
+//! The outputs of `spslam run`, written from the system's state however
+//! the run ended: the trajectory, the keyframe trajectory, report.txt,
+//! report.json and, with ground truth, the evaluation and its plots.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{anyhow, Context, Result};
+use spslam::eval::{write_kitti, write_tum, EvalReport, Trajectory};
+use spslam::optim::Se3;
+use spslam::settings::SlamSettings;
+use spslam::system::{FrameRecord, SlamSummary, StereoSlam};
+
+use super::evaluation::{evaluate_run, Drift};
+use super::frame_loop::{RunEnd, UnreadableFrame};
+use super::source::Source;
+
+/// Where and what to write, besides the system's state.
+pub struct RunOutputs<'a> {
+    /// The output folder (it exists).
+    pub out: &'a Path,
+    /// `--dataset` as given.
+    pub dataset: &'a str,
+    /// The sequence (its layout and ground truth).
+    pub source: &'a Source,
+    /// The settings the run used.
+    pub settings: &'a SlamSettings,
+    /// The number of input frames requested.
+    pub frames_total: usize,
+}
+
+/// report.json.
+#[derive(serde::Serialize)]
+struct RunReport<'a> {
+    dataset: &'a str,
+    extractor: &'a str,
+    /// Whether every requested frame was processed.
+    complete: bool,
+    /// `complete`, `interrupted` or `failed: <error>`.
+    end: String,
+    /// The signal that interrupted the run.
+    signal: Option<&'static str>,
+    /// Input frames requested.
+    frames_total: usize,
+    /// Input frames processed (one trajectory row each).
+    frames_processed: usize,
+    /// The frames skipped because they could not be read.
+    unreadable_frames: &'a [UnreadableFrame],
+    settings: &'a SlamSettings,
+    summary: Option<&'a SlamSummary>,
+    evaluation: Option<&'a EvalReport>,
+    /// Final-position drift (KITTI-layout runs with ground truth).
+    drift: Option<Drift>,
+    frames: &'a [FrameRecord],
+}
+
+fn to_trajectory(poses: &[(f64, Se3)]) -> Trajectory {
+    Trajectory::new(
+        poses.iter().map(|(t, _)| *t).collect(),
+        poses.iter().map(|(_, p)| p.to_isometry()).collect(),
+    )
+}
+
+/// The first line of report.txt: whether the run is complete.
+fn status_line(end: &RunEnd, processed: usize, total: usize, unreadable: usize) -> String {
+    let skipped = match unreadable {
+        0 => String::new(),
+        1 => ", 1 unreadable frame skipped (counted as lost)".into(),
+        n => format!(", {n} unreadable frames skipped (counted as lost)"),
+    };
+    match end {
+        RunEnd::Complete => format!("run complete: {processed} of {total} frames processed{skipped}\n"),
+        RunEnd::Interrupted { signal } => format!(
+            "run INCOMPLETE (interrupted by {signal}): {processed} of {total} frames processed{skipped}; the outputs cover those\n"
+        ),
+        RunEnd::Failed { error } => format!(
+            "run INCOMPLETE (failed: {error}): {processed} of {total} frames processed{skipped}; the outputs cover those\n"
+        ),
+    }
+}
+
+fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
+    let t = &s.mean_timings;
+    let mut text = format!(
+        "dataset {dataset}, extractor {extractor}\n\
+         frames {}: tracked {}, lost {} (tracking failures and {} unreadable), before initialisation {}, relocalisations {}\n\
+         keyframes inserted {}, live {}; map points {}\n\
+         mean ms/frame: extraction {:.1}, stereo {:.1}, tracking {:.1}, mapping {:.1}\n",
+        s.frames,
+        s.tracked,
+        s.lost,
+        s.unreadable,
+        s.not_initialised,
+        s.relocalisations,
+        s.keyframes_inserted,
+        s.keyframes,
+        s.map_points,
+        t.extraction_ms,
+        t.stereo_ms,
+        t.tracking_ms,
+        t.mapping_ms
+    );
+    for m in &s.maps {
+        text.push_str(&format!(
+            "map {}: first frame {}, {} frames, {} tracked, {} keyframes, {} map points",
+            m.index, m.first_frame, m.frames, m.tracked, m.keyframes, m.map_points
+        ));
+        match (m.index, m.anchored_at_frame) {
+            (0, _) => {}
+            (k, Some(n)) => text.push_str(&format!(
+                "; anchored at frame {n}: frames of map {k} are anchored at the pose of frame {n}, the last known before the loss"
+            )),
+            (_, None) => {
+                text.push_str("; no frame tracked in it: its frames repeat the last known pose")
+            }
+        }
+        text.push('\n');
+    }
+    text
+}
+
+impl RunOutputs<'_> {
+    /// Writes the outputs of every frame processed so far. Each output is
+    /// attempted even when an earlier one failed; the failures come back
+    /// (empty when everything was written).
+    pub fn write(
+        &self,
+        slam: &StereoSlam,
+        end: &RunEnd,
+        unreadable: &[UnreadableFrame],
+    ) -> Vec<anyhow::Error> {
+        let mut problems = Vec::new();
+        let mut written: Vec<PathBuf> = Vec::new();
+        let mut keep = |result: Result<PathBuf>, problems: &mut Vec<anyhow::Error>| match result {
+            Ok(path) => written.push(path),
+            Err(e) => problems.push(e),
+        };
+
+        let trajectory = slam.trajectory().map(|p| to_trajectory(&p));
+        let trajectory = match trajectory {
+            Ok(t) => {
+                keep(self.write_trajectory(&t), &mut problems);
+                Some(t)
+            }
+            Err(e) => {
+                problems.push(anyhow!("cannot compute the trajectory: {e}"));
+                None
+            }
+        };
+        match slam.keyframe_trajectory() {
+            Ok(k) => {
+                let path = self.out.join("keyframes_tum.txt");
+                let result = write_tum(&path, &to_trajectory(&k))
+                    .with_context(|| format!("cannot write {}", path.display()))
+                    .map(|()| path);
+                keep(result, &mut problems);
+            }
+            Err(e) => problems.push(anyhow!("cannot compute the keyframe trajectory: {e}")),
+        }
+
+        let records = slam.records();
+        let extractor = slam.extractor_name().to_string();
+        let mut text = status_line(end, records.len(), self.frames_total, unreadable.len());
+        let summary = match slam.summary() {
+            Ok(s) => {
+                text.push_str(&summary_text(self.dataset, &extractor, &s));
+                Some(s)
+            }
+            Err(e) => {
+                problems.push(anyhow!("cannot summarise the run: {e}"));
+                None
+            }
+        };
+        for u in unreadable {
+            text.push_str(&format!(
+                "unreadable frame {} (skipped, counted as lost): {}: {}\n",
+                u.index, u.path, u.reason
+            ));
+        }
+        let (evaluation, drift) = match &trajectory {
+            Some(t) => match self.evaluate(t, end, &mut text) {
+                Ok(found) => found,
+                Err(e) => {
+                    text.push_str(&format!("evaluation failed: {e:#}\n"));
+                    problems.push(e.context("evaluation failed"));
+                    (None, None)
+                }
+            },
+            None => (None, None),
+        };
+
+        print!("{text}");
+        let path = self.out.join("report.txt");
+        let result = std::fs::write(&path, &text)
+            .with_context(|| format!("cannot write {}", path.display()))
+            .map(|()| path);
+        keep(result, &mut problems);
+        let report = RunReport {
+            dataset: self.dataset,
+            extractor: &extractor,
+            complete: end.is_complete(),
+            end: end.label(),
+            signal: end.signal(),
+            frames_total: self.frames_total,
+            frames_processed: records.len(),
+            unreadable_frames: unreadable,
+            settings: self.settings,
+            summary: summary.as_ref(),
+            evaluation: evaluation.as_ref(),
+            drift,
+            frames: records,
+        };
+        keep(self.write_json(&report), &mut problems);
+        if !written.is_empty() {
+            let names: Vec<String> = written.iter().map(|p| p.display().to_string()).collect();
+            println!("wrote {}", names.join(", "));
+        }
+        problems
+    }
+
+    /// `trajectory_kitti.txt` (KITTI layout) or `trajectory_tum.txt` (EuRoC).
+    fn write_trajectory(&self, trajectory: &Trajectory) -> Result<PathBuf> {
+        let (path, result) = if self.source.is_kitti() {
+            let p = self.out.join("trajectory_kitti.txt");
+            let r = write_kitti(&p, trajectory);
+            (p, r)
+        } else {
+            let p = self.out.join("trajectory_tum.txt");
+            let r = write_tum(&p, trajectory);
+            (p, r)
+        };
+        result.with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(path)
+    }
+
+    /// The evaluation of the rows written, when there is ground truth.
+    fn evaluate(
+        &self,
+        trajectory: &Trajectory,
+        end: &RunEnd,
+        text: &mut String,
+    ) -> Result<(Option<EvalReport>, Option<Drift>)> {
+        let Some(gt) = self.source.ground_truth(trajectory.len())? else {
+            return Ok((None, None));
+        };
+        if !end.is_complete() {
+            text.push_str(&format!(
+                "evaluated over the {} frames processed\n",
+                trajectory.len()
+            ));
+        }
+        evaluate_run(self.source, &gt, trajectory, self.out, text)
+    }
+
+    fn write_json(&self, report: &RunReport<'_>) -> Result<PathBuf> {
+        let path = self.out.join("report.json");
+        let file = std::fs::File::create(&path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        let mut writer = std::io::BufWriter::new(file);
+        serde_json::to_writer_pretty(&mut writer, report)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        std::io::Write::flush(&mut writer)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        Ok(path)
+    }
+}

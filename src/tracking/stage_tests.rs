@@ -1,0 +1,219 @@
+//! Tracking's decisions on frames built from a point world with known
+//! answers: ORB-SLAM3's stereo keyframe rule as a truth table, and
+//! relocalisation from a known pose.
+
+use std::collections::BTreeMap;
+
+use nalgebra::Vector3;
+
+use super::keyframe::{needs_keyframe, KeyFrameContext};
+use super::relocalise::relocalise;
+use crate::map::{KeyFrameId, Map};
+use crate::optim::LieGroup;
+use crate::test_world::{pose_at, PointWorld, View};
+
+fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
+    r.unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A map of stereo keyframes along +z (0.4 m apart) in which every world
+/// point seen by the first keyframe is a map point observed by every
+/// keyframe that sees it.
+fn keyframe_chain(world: &PointWorld, keyframes: usize) -> (Map, Vec<(KeyFrameId, View)>) {
+    let mut map = Map::new();
+    let mut kfs = Vec::new();
+    for k in 0..keyframes {
+        let pose = pose_at(Vector3::new(0.0, 0.0, 0.4 * k as f64), 0.0);
+        kfs.push(world.add_keyframe(&mut map, pose, true));
+    }
+    let mut point_ids = BTreeMap::new();
+    for (kf, view) in &kfs {
+        for (index, &p) in view.point_of.iter().enumerate() {
+            let id = *point_ids
+                .entry(p)
+                .or_insert_with(|| world.add_point(&mut map, p, kfs[0].0));
+            ok(map.add_observation(id, *kf, index));
+        }
+    }
+    let ids: Vec<_> = map.map_points().map(|p| p.id()).collect();
+    for id in ids {
+        map.update_descriptor(id);
+        map.update_normal_and_depth(id);
+    }
+    for (kf, _) in &kfs {
+        map.update_connections(*kf);
+    }
+    (map, kfs)
+}
+
+#[test]
+fn keyframe_decision_follows_orb_slam3_stereo_rule() {
+    // Points from 4 to 40 m: about half closer than the rig's 20 m.
+    let world = PointWorld::new(3, 900, (14.0, 5.0, 4.0, 40.0));
+    let (map, kfs) = keyframe_chain(&world, 3);
+    let reference = kfs[2].0;
+    let reference_matches = ok(map.keyframe(reference))
+        .observed_points()
+        .filter(|(_, p)| map.map_point(*p).is_ok_and(|p| p.observation_count() >= 3))
+        .count();
+    assert!(reference_matches > 300, "{reference_matches}");
+    let r = reference_matches as f64;
+    // The frame: 0.2 m ahead of the reference keyframe.
+    let (mut frame, view) = world.frame(30, &pose_at(Vector3::new(0.0, 0.0, 1.0), 0.0), true);
+    let close: Vec<usize> = (0..frame.len())
+        .filter(|&i| frame.depth(i).is_some_and(|d| d < world.rig.close_depth))
+        .collect();
+    assert!(close.len() > 200, "{} close keypoints", close.len());
+    let _ = view;
+    // tracked_close ≥ 100: no need for close points, unless `need_close`.
+    let set_tracked_close = |frame: &mut super::Frame, tracked: usize| {
+        frame.map_points.iter_mut().for_each(|p| *p = None);
+        for &i in close.iter().take(tracked) {
+            frame.map_points[i] = Some(crate::map::MapPointId(0));
+        }
+    };
+    struct Row {
+        name: &'static str,
+        inliers: f64,
+        need_close: bool,
+        queue: usize,
+        frames_since_keyframe: usize,
+        expected: bool,
+    }
+    let rows = [
+        Row {
+            name: "many inliers, idle",
+            inliers: 0.9,
+            need_close: false,
+            queue: 0,
+            frames_since_keyframe: 1,
+            expected: false,
+        },
+        Row {
+            name: "fewer than 75 % inliers, idle",
+            inliers: 0.6,
+            need_close: false,
+            queue: 0,
+            frames_since_keyframe: 1,
+            expected: true,
+        },
+        Row {
+            name: "fewer than 75 % inliers, busy, recent keyframe",
+            inliers: 0.6,
+            need_close: false,
+            queue: 1,
+            frames_since_keyframe: 1,
+            expected: false,
+        },
+        Row {
+            name: "fewer than 75 % inliers, busy, a second since the last keyframe",
+            inliers: 0.6,
+            need_close: false,
+            queue: 1,
+            frames_since_keyframe: 10,
+            expected: true,
+        },
+        Row {
+            name: "fewer than 25 % inliers, busy (queue 2)",
+            inliers: 0.2,
+            need_close: false,
+            queue: 2,
+            frames_since_keyframe: 1,
+            expected: true,
+        },
+        Row {
+            name: "fewer than 25 % inliers, queue full (3)",
+            inliers: 0.2,
+            need_close: false,
+            queue: 3,
+            frames_since_keyframe: 1,
+            expected: false,
+        },
+        Row {
+            name: "many inliers but close points untracked, busy",
+            inliers: 0.9,
+            need_close: true,
+            queue: 1,
+            frames_since_keyframe: 1,
+            expected: true,
+        },
+        Row {
+            name: "15 inliers or fewer",
+            inliers: 15.0 / r,
+            need_close: true,
+            queue: 0,
+            frames_since_keyframe: 20,
+            expected: false,
+        },
+    ];
+    for row in rows {
+        set_tracked_close(&mut frame, if row.need_close { 50 } else { 150 });
+        let ctx = KeyFrameContext {
+            reference,
+            last_keyframe_frame: frame.index - row.frames_since_keyframe,
+            last_relocalisation_frame: None,
+            inliers: (row.inliers * r).round() as usize,
+            max_frames: 10,
+            mapping_queue: row.queue,
+        };
+        assert_eq!(
+            needs_keyframe(&frame, &map, &world.rig, &ctx),
+            row.expected,
+            "{}",
+            row.name
+        );
+    }
+    // Just after a relocalisation in a map of more than `max_frames`
+    // keyframes, no keyframe (ORB-SLAM3); a small map is exempt.
+    set_tracked_close(&mut frame, 150);
+    let ctx = KeyFrameContext {
+        reference,
+        last_keyframe_frame: frame.index - 1,
+        last_relocalisation_frame: Some(frame.index - 2),
+        inliers: (0.6 * r) as usize,
+        max_frames: 10,
+        mapping_queue: 0,
+    };
+    assert!(
+        needs_keyframe(&frame, &map, &world.rig, &ctx),
+        "small map exempt"
+    );
+    let ctx = KeyFrameContext {
+        max_frames: 2,
+        last_relocalisation_frame: Some(frame.index - 1),
+        ..ctx
+    };
+    assert!(
+        !needs_keyframe(&frame, &map, &world.rig, &ctx),
+        "recently relocalised"
+    );
+}
+
+#[test]
+fn relocalisation_recovers_a_known_pose() {
+    let world = PointWorld::new(5, 1500, (15.0, 5.0, 4.0, 35.0));
+    let (map, _) = keyframe_chain(&world, 5);
+    // 0.35 m sideways and 4° away from every keyframe, no prior: the
+    // frame starts at the identity pose.
+    let truth = pose_at(Vector3::new(0.35, -0.1, 1.3), 4f64.to_radians());
+    let (mut frame, _) = world.frame(50, &truth, true);
+    assert!(ok(relocalise(&mut frame, &map, &world.rig)));
+    let error = frame.pose_cw.compose(&truth.inverse());
+    let translation = error.translation.norm();
+    let rotation = error.rotation.angle().to_degrees();
+    println!("relocalised: {translation:.2e} m, {rotation:.2e} deg from the truth");
+    assert!(translation < 0.01, "{translation} m");
+    assert!(rotation < 0.1, "{rotation} deg");
+    assert!(frame.tracked_count() >= super::MIN_RELOCALISATION_INLIERS);
+}
+
+#[test]
+fn relocalisation_fails_where_the_map_was_never_seen() {
+    let world = PointWorld::new(5, 1500, (15.0, 5.0, 4.0, 35.0));
+    let (map, _) = keyframe_chain(&world, 5);
+    // Other points, with other descriptors.
+    let elsewhere = PointWorld::new(99, 1500, (15.0, 5.0, 4.0, 35.0));
+    let (mut frame, _) = elsewhere.frame(50, &pose_at(Vector3::zeros(), 0.0), true);
+    assert!(!ok(relocalise(&mut frame, &map, &world.rig)));
+    assert_eq!(frame.tracked_count(), 0);
+}
