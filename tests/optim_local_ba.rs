@@ -638,3 +638,38 @@ fn zero_iterations_leave_the_problem_unchanged() {
     assert_eq!(report.first_stage.termination, Termination::Skipped);
     assert_eq!(p, before);
 }
+
+/// ORB-SLAM3's `mbAbortBA`: a raised flag stops the BA before its next LM
+/// iteration; the problem keeps its best state (here the start: no
+/// iteration ran) and is not corrupted.
+#[test]
+fn a_raised_abort_flag_stops_before_the_next_iteration() {
+    use spslam::optim::local_ba::local_bundle_adjustment_abortable;
+    use std::sync::atomic::AtomicBool;
+
+    let scene = Scene::new(&spec());
+    let mut problem = scene.noisy_problem(&[0], 3.0, 0.05, 0.10, 17);
+    let initial = problem.clone();
+    let abort = AtomicBool::new(true);
+    let report =
+        local_bundle_adjustment_abortable(&mut problem, &LocalBaConfig::default(), Some(&abort))
+            .expect("solves");
+    assert_eq!(report.first_stage.termination, Termination::Aborted);
+    assert_eq!(report.second_stage.termination, Termination::Aborted);
+    assert_eq!(
+        report.first_stage.iterations + report.second_stage.iterations,
+        0
+    );
+    assert_eq!(problem.poses, initial.poses);
+    assert_eq!(problem.points, initial.points);
+
+    // Lowered, the same problem runs to convergence.
+    let mut full = initial.clone();
+    let lowered = AtomicBool::new(false);
+    let report =
+        local_bundle_adjustment_abortable(&mut full, &LocalBaConfig::default(), Some(&lowered))
+            .expect("solves");
+    assert!(report.first_stage.iterations > 0);
+    assert_ne!(report.first_stage.termination, Termination::Aborted);
+    assert!(report.second_stage.final_cost < report.first_stage.initial_cost);
+}

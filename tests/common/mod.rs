@@ -6,6 +6,7 @@ use std::path::PathBuf;
 pub mod pose_graph_problems;
 pub mod rng;
 pub mod synthetic_ba;
+pub mod synthetic_slam;
 
 use spslam::features::{default_model_path, ExtractorConfig, GrayImage, SuperPointExtractor};
 

@@ -37,7 +37,20 @@ fn main() -> std::process::ExitCode {
         )
         .with_writer(std::io::stderr)
         .init();
-    let cli = Cli::parse();
+    // Usage errors exit with 1, like every other failure to start (clap's
+    // own code, 2, is `spslam run`'s code for an incomplete run).
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // Nothing more can be reported when printing the usage fails.
+            let _ = e.print();
+            return if e.use_stderr() {
+                std::process::ExitCode::FAILURE
+            } else {
+                std::process::ExitCode::SUCCESS
+            };
+        }
+    };
     let success = |()| std::process::ExitCode::SUCCESS;
     // `spslam run` picks its own code (0 complete, 2 incomplete); an error
     // from any subcommand is 1.

@@ -10,6 +10,7 @@
 
 mod evaluation;
 mod frame_loop;
+mod kitti_layout;
 mod output;
 mod signals;
 mod source;

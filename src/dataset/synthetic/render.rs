@@ -116,41 +116,7 @@ pub fn render_view(
     threads: usize,
 ) -> View {
     let (width, height) = (camera.width, camera.height);
-    let eye = Point3::from(pose_wc.translation.vector);
-    let rotation = pose_wc.rotation.to_rotation_matrix();
-    let to_camera = rotation.transpose();
-    let visible = world
-        .planes
-        .iter()
-        .filter(|p| p.faces(&eye))
-        .map(|plane| {
-            let normal = plane.normal();
-            let corner = |u: f64, v: f64| to_camera * (plane.point(u, v) - eye);
-            Visible {
-                plane,
-                normal,
-                offset: normal.dot(&(plane.origin - eye)),
-                eye_from_origin: eye - plane.origin,
-                corners: [
-                    corner(0.0, 0.0),
-                    corner(plane.u_length, 0.0),
-                    corner(0.0, plane.v_length),
-                    corner(plane.u_length, plane.v_length),
-                ],
-            }
-        })
-        .collect();
-    let setup = ViewSetup {
-        world,
-        visible,
-        corner_ray_camera: camera.ray(0.0, 0.0),
-        inverse_focal: [1.0 / camera.fx, 1.0 / camera.fy],
-        corner_ray: rotation * camera.ray(0.0, 0.0),
-        step_x: rotation * Vector3::new(1.0 / camera.fx, 0.0, 0.0),
-        step_y: rotation * Vector3::new(0.0, 1.0 / camera.fy, 0.0),
-        width,
-        height,
-    };
+    let setup = ViewSetup::new(world, camera, pose_wc);
     let mut gray = vec![0f32; width * height];
     let mut depth = if with_depth {
         vec![0f32; width * height]
@@ -178,7 +144,7 @@ pub fn render_view(
 
 /// The nearest plane along a ray: index into the visible planes, ray
 /// parameter, surface coordinates and `normal · ray`.
-#[derive(Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct RayHit {
     visible: usize,
     t: f64,
@@ -192,7 +158,46 @@ const SKY: u32 = u32::MAX;
 /// Sub-pixel offsets of the 4×4 samples taken on silhouette pixels.
 const SUBSAMPLES: [f64; 4] = [-0.375, -0.125, 0.125, 0.375];
 
-impl ViewSetup<'_> {
+impl<'a> ViewSetup<'a> {
+    /// The planes `world` shows a camera at `pose_wc` (T_wc), and the rays.
+    fn new(world: &'a World, camera: &StereoCamera, pose_wc: &Isometry3<f64>) -> Self {
+        let eye = Point3::from(pose_wc.translation.vector);
+        let rotation = pose_wc.rotation.to_rotation_matrix();
+        let to_camera = rotation.transpose();
+        let visible = world
+            .planes
+            .iter()
+            .filter(|p| p.faces(&eye))
+            .map(|plane| {
+                let normal = plane.normal();
+                let corner = |u: f64, v: f64| to_camera * (plane.point(u, v) - eye);
+                Visible {
+                    plane,
+                    normal,
+                    offset: normal.dot(&(plane.origin - eye)),
+                    eye_from_origin: eye - plane.origin,
+                    corners: [
+                        corner(0.0, 0.0),
+                        corner(plane.u_length, 0.0),
+                        corner(0.0, plane.v_length),
+                        corner(plane.u_length, plane.v_length),
+                    ],
+                }
+            })
+            .collect();
+        Self {
+            world,
+            visible,
+            corner_ray_camera: camera.ray(0.0, 0.0),
+            inverse_focal: [1.0 / camera.fx, 1.0 / camera.fy],
+            corner_ray: rotation * camera.ray(0.0, 0.0),
+            step_x: rotation * Vector3::new(1.0 / camera.fx, 0.0, 0.0),
+            step_y: rotation * Vector3::new(0.0, 1.0 / camera.fy, 0.0),
+            width: camera.width,
+            height: camera.height,
+        }
+    }
+
     /// Renders the rows starting at `first_row` into the given slices.
     ///
     /// A pixel is shaded at its centre, box-filtered over its footprint on
@@ -426,5 +431,49 @@ mod tests {
         );
         assert_eq!(one, many);
         assert!(one.depth.is_empty());
+    }
+
+    #[test]
+    fn tiles_keep_every_plane_a_ray_can_hit() {
+        // Many small boards all around (some behind, some straddling the
+        // camera plane), one tilted camera: every ray the renderer casts
+        // (pixel corners, centres, sub-samples) finds among its tile's
+        // planes exactly the hit it finds among all planes.
+        let mut rng = crate::dataset::synthetic::SplitMix64::new(7);
+        let mut planes = Vec::new();
+        for _ in 0..150 {
+            let origin = Point3::new(
+                rng.uniform(-30.0, 30.0),
+                rng.uniform(-10.0, 10.0),
+                rng.uniform(-20.0, 60.0),
+            );
+            let u = Vector3::new(rng.normal(), rng.normal(), rng.normal());
+            let v = u.cross(&Vector3::new(rng.normal(), rng.normal(), rng.normal()));
+            let (a, b) = (rng.uniform(0.05, 6.0), rng.uniform(0.05, 6.0));
+            planes.push(Plane::new(origin, u, v, a, b, Texture::Flat { gray: 9.0 }));
+        }
+        let world = World::new(planes);
+        let camera = StereoCamera::centred(83, 61, 40.0, 0.5);
+        let pose = Isometry3::new(Vector3::new(0.3, -0.2, 0.1), Vector3::new(0.1, 0.4, -0.05));
+        let setup = ViewSetup::new(&world, &camera, &pose);
+        let all: Vec<u32> = (0..setup.visible.len() as u32).collect();
+        let tiles = setup.tile_planes(0..camera.height.div_ceil(TILE));
+        assert!(tiles.planes.len() < all.len() * tiles.ends.len() / 2);
+        let (mut hits, mut checked) = (0, 0);
+        for y in 0..camera.height {
+            for x in 0..camera.width {
+                let offsets = [-0.5, -0.375, 0.0, 0.375, 0.5];
+                for dy in offsets {
+                    for dx in offsets {
+                        let ray = setup.ray(x as f64 + dx, y as f64 + dy);
+                        let expected = setup.intersect(&ray, &all);
+                        assert_eq!(setup.intersect(&ray, tiles.at(x, y)), expected);
+                        hits += usize::from(expected.is_some());
+                        checked += 1;
+                    }
+                }
+            }
+        }
+        assert!(hits > 5000, "{hits} hits of {checked} rays");
     }
 }

@@ -4,13 +4,15 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use opencv::core::{Mat, MatTraitConst};
 use opencv::imgcodecs;
-use spslam::dataset::{EurocSequence, KittiSequence, StereoFrame, StereoRectifier};
+use spslam::dataset::{EurocSequence, StereoFrame, StereoRectifier};
 use spslam::eval::{read_euroc, read_kitti, Trajectory};
 use spslam::features::{FeatureError, GrayImage};
 use spslam::settings::SlamSettings;
+
+use super::kitti_layout::KittiLayout;
 
 /// Why an input image cannot be used.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -23,7 +25,7 @@ pub enum UnreadableCause {
     Undecodable(String),
     /// The image's size differs from the first frame's.
     #[error(
-        "the image is {width}x{height}, the first frame's are {expected_width}x{expected_height}"
+        "the image is {width}x{height}, the first frame's images are {expected_width}x{expected_height}"
     )]
     SizeChanged {
         /// Its width.
@@ -91,7 +93,7 @@ impl Unreadable {
 /// A stereo sequence and how to read its images.
 pub enum Source {
     /// KITTI or a synthetic sequence in KITTI's layout.
-    Kitti(KittiSequence),
+    Kitti(KittiLayout),
     /// An EuRoC ASL folder, rectified on reading.
     Euroc(EurocSequence, StereoRectifier),
 }
@@ -104,7 +106,7 @@ impl Source {
         };
         let dir = PathBuf::from(dir);
         match kind {
-            "kitti" | "synth" => Ok(Self::Kitti(open_kitti_like(&dir)?)),
+            "kitti" | "synth" => Ok(Self::Kitti(KittiLayout::open(&dir)?)),
             "euroc" => {
                 let seq = EurocSequence::open(&dir)?;
                 let rectifier = StereoRectifier::from_euroc(seq.cam0(), seq.cam1())?;
@@ -117,7 +119,7 @@ impl Source {
     /// Every frame of the sequence.
     pub fn frames(&self) -> &[StereoFrame] {
         match self {
-            Self::Kitti(seq) => seq.frames(),
+            Self::Kitti(seq) => &seq.frames,
             Self::Euroc(s, _) => s.frames(),
         }
     }
@@ -134,7 +136,7 @@ impl Source {
     pub fn default_settings(&self) -> SlamSettings {
         match self {
             Self::Kitti(seq) => {
-                let c = seq.calibration();
+                let c = &seq.calibration;
                 SlamSettings::rectified_stereo(c.fx, c.fy, c.cx, c.cy, c.baseline)
             }
             Self::Euroc(_, r) => {
@@ -211,10 +213,10 @@ impl Source {
     pub fn ground_truth(&self, rows: usize) -> Result<Option<Trajectory>> {
         match self {
             Self::Kitti(seq) => {
-                let Some(path) = seq.ground_truth_path() else {
+                let Some(path) = &seq.ground_truth else {
                     return Ok(None);
                 };
-                let gt = read_kitti(&path)?;
+                let gt = read_kitti(path)?;
                 let n = rows.min(gt.len());
                 Ok(Some(gt.select(&(0..n).collect::<Vec<_>>())))
             }
@@ -290,24 +292,4 @@ fn read_rectified(
         gray(&pair.left, &frame.left)?,
         gray(&pair.right, &frame.right)?,
     ))
-}
-
-/// A KITTI-layout sequence from its own folder or a root holding `sequences/`.
-fn open_kitti_like(dir: &Path) -> Result<KittiSequence> {
-    if dir.join("calib.txt").is_file() {
-        let name = dir.file_name().and_then(|n| n.to_str()).unwrap_or("00");
-        return Ok(KittiSequence::open(dir, name)?);
-    }
-    let sequences = dir.join("sequences");
-    let mut names: Vec<String> = std::fs::read_dir(&sequences)
-        .with_context(|| format!("{} has no calib.txt nor sequences/", dir.display()))?
-        .filter_map(|e| e.ok())
-        .filter(|e| e.path().join("calib.txt").is_file())
-        .filter_map(|e| e.file_name().to_str().map(String::from))
-        .collect();
-    names.sort();
-    let Some(name) = names.first() else {
-        bail!("no sequence with a calib.txt under {}", sequences.display());
-    };
-    Ok(KittiSequence::open(dir, name)?)
 }

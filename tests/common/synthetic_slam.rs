@@ -1,0 +1,53 @@
+//! Stereo SLAM with ORB on synthetic sequences rendered in memory at
+//! 480×360 (focal 0.75× the default): one place to build the sequence, the
+//! rig and the system, shared by the SLAM integration tests.
+
+use spslam::camera::StereoRig;
+use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticSequence};
+use spslam::features::{GrayImage, OrbConfig, OrbExtractor};
+use spslam::settings::SlamSettings;
+use spslam::system::StereoSlam;
+use spslam::tracking::StereoFrontend;
+
+/// `frames` frames of `scene` at the tests' 480×360 size.
+pub fn small_sequence(scene: SceneName, frames: usize) -> SyntheticSequence {
+    let mut config = SyntheticConfig::for_scene(scene);
+    config.frames = Some(frames);
+    config.width = 480;
+    config.height = 360;
+    config.focal_length *= 0.75;
+    SyntheticSequence::new(config).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The sequence's rig with default settings.
+pub fn rig_of(sequence: &SyntheticSequence) -> StereoRig {
+    let cam = *sequence.camera();
+    let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
+    StereoRig::from_settings(&settings, cam.width, cam.height).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// An ORB stereo SLAM system for the sequence, mapping inline, with the
+/// map's invariants checked after every local-mapping step.
+pub fn orb_slam(sequence: &SyntheticSequence) -> StereoSlam {
+    let rig = rig_of(sequence);
+    let orb =
+        || Box::new(OrbExtractor::new(OrbConfig::default()).unwrap_or_else(|e| panic!("{e}")));
+    let mut slam = StereoSlam::new(rig, StereoFrontend::new(orb(), orb(), &rig));
+    if let Some(mapper) = slam.mapper_mut() {
+        mapper.check_invariants = true;
+    }
+    slam
+}
+
+/// Frame `index` of the sequence as a left and right image.
+pub fn images(sequence: &SyntheticSequence, index: usize) -> (f64, GrayImage, GrayImage) {
+    let frame = sequence.render(index, false);
+    let image = |data: Vec<u8>| {
+        GrayImage::from_vec(data, frame.width, frame.height).unwrap_or_else(|e| panic!("{e}"))
+    };
+    (
+        frame.timestamp,
+        image(frame.left.clone()),
+        image(frame.right.clone()),
+    )
+}

@@ -1,0 +1,176 @@
+//! The system layer on synthetic sequences with exact ground truth (ORB,
+//! 480×360): a kidnapped camera resumes in a new atlas map without losing
+//! a trajectory row, and tracking completes frames while local mapping's
+//! BA is being solved, which the new keyframes then abort.
+
+mod common;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use common::synthetic_slam::{images, orb_slam, small_sequence};
+use spslam::dataset::synthetic::SceneName;
+use spslam::optim::{LieGroup, Se3};
+use spslam::tracking::{TrackingState, RELOCALISATION_PATIENCE_S};
+
+fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
+    r.unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
+    let sequence = small_sequence(SceneName::Loop, 232);
+    let mut slam = orb_slam(&sequence);
+    // 40 frames in order, then the camera is carried three quarters of the
+    // way round the block and goes on from there.
+    let inputs: Vec<usize> = (0..40).chain(160..200).collect();
+    let kidnap = 40;
+    for (k, &i) in inputs.iter().enumerate() {
+        let (_, l, r) = images(&sequence, i);
+        ok(slam.process(k, k as f64 * 0.1, l.view(), r.view()));
+    }
+    ok(slam.finish());
+    let records = slam.records();
+    let trajectory = ok(slam.trajectory());
+    assert_eq!(records.len(), inputs.len());
+    assert_eq!(trajectory.len(), inputs.len(), "one row per input frame");
+
+    let maps = slam.atlas().maps();
+    let summary = ok(slam.summary());
+    eprintln!("maps: {:?}", summary.maps);
+    assert_eq!(maps.len(), 2, "a second map after the kidnapping");
+    for r in &records[..kidnap] {
+        assert_eq!(
+            (r.map, r.state),
+            (0, TrackingState::Ok),
+            "frame {}",
+            r.index
+        );
+    }
+    // Relocalisation is given `RELOCALISATION_PATIENCE_S` (5 frames at 10
+    // fps), then the next frame starts and initialises the new map.
+    let patience = (RELOCALISATION_PATIENCE_S * 10.0).ceil() as usize;
+    let second = maps[1].first_frame;
+    eprintln!("lost at {kidnap}, new map from frame {second}");
+    assert!(
+        second > kidnap && second <= kidnap + patience + 1,
+        "new map at {second}"
+    );
+    for r in &records[second..] {
+        assert_eq!(
+            (r.map, r.state),
+            (1, TrackingState::Ok),
+            "frame {}",
+            r.index
+        );
+    }
+    // Anchoring: the new map's first pose is the last pose before the loss.
+    assert_eq!(summary.maps[1].anchored_at_frame, Some(kidnap - 1));
+    let gap = (trajectory[second]
+        .1
+        .compose(&trajectory[kidnap - 1].1.inverse()))
+    .translation
+    .norm();
+    assert!(gap < 1e-9, "anchor off by {gap} m");
+    // In the new map the motion is right: the relative pose from its first
+    // frame to the last matches the ground truth within 2 % of the distance.
+    let last = inputs.len() - 1;
+    let truth = |k: usize| Se3::from_isometry(&sequence.pose(inputs[k]));
+    let estimated = trajectory[second].1.inverse().compose(&trajectory[last].1);
+    let expected = truth(second).inverse().compose(&truth(last));
+    let distance = expected.translation.norm();
+    let error = (estimated.translation - expected.translation).norm();
+    eprintln!("new map: {distance:.1} m travelled, relative error {error:.3} m");
+    assert!(distance > 10.0);
+    assert!(error < 0.02 * distance, "{error} m over {distance} m");
+}
+
+#[test]
+fn tracking_goes_on_while_local_ba_is_solved_and_new_keyframes_abort_it() {
+    let sequence = small_sequence(SceneName::Straight, 80);
+    let mut slam = orb_slam(&sequence);
+    let (entered_tx, entered_rx) = mpsc::channel::<()>();
+    let (release_tx, release_rx) = mpsc::channel::<()>();
+    let entered_tx = Mutex::new(entered_tx);
+    let release_rx = Mutex::new(release_rx);
+    let held_once = AtomicBool::new(false);
+    let released_by_test = Arc::new(AtomicBool::new(false));
+    let released = Arc::clone(&released_by_test);
+    // Holds the first BA solve (no lock is held there) until the test says
+    // so, or 120 s pass.
+    let hook = move || {
+        if held_once.swap(true, Ordering::AcqRel) {
+            return;
+        }
+        if let Ok(tx) = entered_tx.lock() {
+            let _ = tx.send(());
+        }
+        if let Ok(rx) = release_rx.lock() {
+            if rx.recv_timeout(Duration::from_secs(120)).is_ok() {
+                released.store(true, Ordering::Release);
+            }
+        }
+    };
+    if let Some(mapper) = slam.mapper_mut() {
+        mapper.set_before_solve(Some(Arc::new(hook)));
+    }
+    ok(slam.spawn_mapping_thread());
+    let mut next = 0;
+    let process = |slam: &mut spslam::system::StereoSlam, i: usize| {
+        let (t, l, r) = images(&sequence, i);
+        ok(slam.process(i, t, l.view(), r.view())).state
+    };
+    // Until local mapping is inside its first BA solve.
+    loop {
+        assert!(next < 40, "no local BA started in 40 frames");
+        process(&mut slam, next);
+        next += 1;
+        if entered_rx.recv_timeout(Duration::from_millis(50)).is_ok() {
+            break;
+        }
+    }
+    let held_from = next;
+    // While the solve is held, tracking completes frames and queues
+    // keyframes (up to ORB-SLAM3's stereo queue of 3; a solve held much
+    // longer starves tracking of new points, as it would in ORB-SLAM3).
+    for _ in 0..4 {
+        assert_eq!(process(&mut slam, next), TrackingState::Ok, "frame {next}");
+        next += 1;
+    }
+    assert!(
+        !released_by_test.load(Ordering::Acquire),
+        "tracking waited for the held BA"
+    );
+    let inserted = slam.records()[held_from..]
+        .iter()
+        .filter(|r| r.keyframe)
+        .count();
+    eprintln!("held the BA from frame {held_from}; {inserted} keyframes inserted meanwhile");
+    assert!(inserted > 0, "no keyframe queued while the BA was held");
+    ok(release_tx.send(()));
+    while next < sequence.len() {
+        process(&mut slam, next);
+        next += 1;
+    }
+    ok(slam.finish());
+    assert!(released_by_test.load(Ordering::Acquire));
+    // The held BA saw the abort raised by the queued keyframes and stopped
+    // before its first iteration.
+    let aborted: Vec<usize> = slam
+        .records()
+        .iter()
+        .filter(|r| r.mapping.as_ref().is_some_and(|m| m.bundle.aborted))
+        .map(|r| r.index)
+        .collect();
+    eprintln!("aborted BAs at frames {aborted:?}");
+    assert!(!aborted.is_empty(), "the held BA was not aborted");
+    let lost: Vec<usize> = slam
+        .records()
+        .iter()
+        .filter(|r| r.state != TrackingState::Ok)
+        .map(|r| r.index)
+        .collect();
+    assert!(lost.is_empty(), "lost frames {lost:?}");
+}
