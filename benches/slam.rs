@@ -1,13 +1,18 @@
 //! Stereo SLAM without feature extraction: stereo matching, tracking and
-//! local mapping (inline, so all of it is on the clock) over the 51 frames
-//! of the KITTI 06 excerpt at 1000 features, with the settings of
-//! `settings/KITTI04-12.yaml` (8 levels, the paper's 20 m depth filter).
+//! local mapping over the 51 frames of the KITTI 06 excerpt at 1000
+//! features, with the settings of `settings/KITTI04-12.yaml` (8 levels,
+//! every stereo depth kept).
 //!
 //! The features of every frame are extracted once before timing; one
-//! iteration resets the system and processes the whole excerpt, so the time
-//! per frame is the iteration time / 51. Extractors: ORB (`orb_1000`) and
-//! SuperPoint + kd-tree ANMS (`superpoint_anms_1000`, whose setup extracts
-//! 102 images on 8 levels: about three minutes on a 2-core machine).
+//! iteration resets the system, processes the whole excerpt and waits for
+//! local mapping to finish, so the time per frame is the iteration time /
+//! 51. Extractors: ORB (`orb_1000`) and SuperPoint + kd-tree ANMS
+//! (`superpoint_anms_1000`, whose setup extracts 102 images on 8 levels:
+//! about three minutes on a 2-core machine). Local mapping runs inline
+//! (all of it on the clock, one core) or on its own thread (`*_mapping_thread`,
+//! as `spslam run` does); for the threaded runs the setup also prints the
+//! tracking time per frame (stereo matching + tracking, median and 95th
+//! percentile) while mapping runs beside it.
 //!
 //! Data: `SPSLAM_DATA`, else `../shared/data` next to the crate. Without it
 //! (or without the model) the benchmark is skipped with a message.
@@ -77,15 +82,46 @@ fn prepare(
     Ok((slam, features))
 }
 
-/// Resets the system and tracks the whole excerpt; panics if a frame is lost.
-fn run_excerpt(slam: &mut StereoSlam, excerpt: &Excerpt, features: &[StereoFeatures]) {
+/// Resets the system, tracks the whole excerpt (local mapping on its own
+/// thread when `threaded`) and waits for mapping; panics if a frame is lost.
+fn run_excerpt(
+    slam: &mut StereoSlam,
+    excerpt: &Excerpt,
+    features: &[StereoFeatures],
+    threaded: bool,
+) {
     slam.reset().unwrap_or_else(|e| panic!("{e}"));
+    if threaded {
+        slam.spawn_mapping_thread()
+            .unwrap_or_else(|e| panic!("{e}"));
+    }
     for (i, ((t, l, r), f)) in excerpt.images.iter().zip(features).enumerate() {
         let record = slam
             .process_features(i, *t, f.clone(), l.view(), r.view(), 0.0)
             .unwrap_or_else(|e| panic!("frame {i}: {e}"));
         assert!(record.state == TrackingState::Ok, "frame {i} lost");
     }
+    slam.finish().unwrap_or_else(|e| panic!("{e}"));
+}
+
+/// Median and 95th percentile of the per-frame tracking time (stereo
+/// matching + tracking, keyframe insertion included).
+fn print_tracking_percentiles(name: &str, records: &[FrameRecord]) {
+    let mut ms: Vec<f64> = records
+        .iter()
+        .map(|r| r.timings.stereo_ms + r.timings.tracking_ms)
+        .collect();
+    ms.sort_by(f64::total_cmp);
+    let at = |q: f64| ms[((ms.len() - 1) as f64 * q).round() as usize];
+    if ms.is_empty() {
+        return;
+    }
+    eprintln!(
+        "{name}: tracking per frame (stereo + tracking) median {:.2} ms, p95 {:.2} ms ({:.2}x the median)",
+        at(0.5),
+        at(0.95),
+        at(0.95) / at(0.5)
+    );
 }
 
 /// Prints one run's mean milliseconds per frame by stage and mapping step.
@@ -148,20 +184,30 @@ fn bench_slam(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(20));
     let variants: [(&str, MakeExtractors); 2] =
         [("orb_1000", orb), ("superpoint_anms_1000", superpoint)];
-    for (name, make) in variants {
+    for (extractor, make) in variants {
         let prepared = make(&excerpt.settings).and_then(|x| prepare(&excerpt, x));
         let (mut slam, features) = match prepared {
             Ok(p) => p,
             Err(e) => {
-                eprintln!("{name} skipped: {e}");
+                eprintln!("{extractor} skipped: {e}");
                 continue;
             }
         };
-        run_excerpt(&mut slam, &excerpt, &features);
-        print_breakdown(name, slam.records());
-        group.bench_function(name, |b| {
-            b.iter(|| run_excerpt(&mut slam, &excerpt, &features))
-        });
+        for threaded in [false, true] {
+            let name = if threaded {
+                format!("{extractor}_mapping_thread")
+            } else {
+                extractor.to_string()
+            };
+            run_excerpt(&mut slam, &excerpt, &features, threaded);
+            print_breakdown(&name, slam.records());
+            if threaded {
+                print_tracking_percentiles(&name, slam.records());
+            }
+            group.bench_function(&name, |b| {
+                b.iter(|| run_excerpt(&mut slam, &excerpt, &features, threaded))
+            });
+        }
     }
     group.finish();
 }

@@ -7,14 +7,14 @@
 //! view) to keep the suite's time down; `EVALUATION.md` has the 640×480
 //! runs through `spslam run`.
 
+mod common;
+
+use common::synthetic_slam::{images, orb_slam, small_sequence};
 use nalgebra::Isometry3;
-use spslam::camera::StereoRig;
-use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticSequence};
+use spslam::dataset::synthetic::SceneName;
 use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
-use spslam::features::{GrayImage, OrbConfig, OrbExtractor};
-use spslam::settings::SlamSettings;
-use spslam::system::StereoSlam;
-use spslam::tracking::{StereoFrontend, TrackingState};
+use spslam::features::GrayImage;
+use spslam::tracking::TrackingState;
 
 /// Frames per sequence (10 m/s at 10 fps: 500 m).
 const FRAMES: usize = 500;
@@ -74,19 +74,8 @@ fn run_orb_slam_with(
     frames: usize,
     threaded: bool,
 ) -> (SyntheticRun, Vec<spslam::system::FrameRecord>) {
-    let mut config = SyntheticConfig::for_scene(scene);
-    config.frames = Some(frames);
-    config.width = 480;
-    config.height = 360;
-    config.focal_length *= 0.75;
-    let sequence = SyntheticSequence::new(config).unwrap_or_else(|e| panic!("{e}"));
-    let cam = *sequence.camera();
-    let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
-    let rig = StereoRig::from_settings(&settings, cam.width, cam.height)
-        .unwrap_or_else(|e| panic!("{e}"));
-    let orb =
-        || Box::new(OrbExtractor::new(OrbConfig::default()).unwrap_or_else(|e| panic!("{e}")));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(orb(), orb(), &rig));
+    let sequence = small_sequence(scene, frames);
+    let mut slam = orb_slam(&sequence);
     if threaded {
         slam.spawn_mapping_thread()
             .unwrap_or_else(|e| panic!("{e}"));
@@ -95,15 +84,11 @@ fn run_orb_slam_with(
     let mut truth = Vec::with_capacity(sequence.len());
     let mut timestamps = Vec::with_capacity(sequence.len());
     for i in 0..sequence.len() {
-        let frame = sequence.render(i, false);
-        let image = |data: Vec<u8>| {
-            GrayImage::from_vec(data, frame.width, frame.height).unwrap_or_else(|e| panic!("{e}"))
-        };
-        let (l, r) = (image(frame.left.clone()), image(frame.right.clone()));
-        slam.process(i, frame.timestamp, l.view(), r.view())
+        let (timestamp, l, r) = images(&sequence, i);
+        slam.process(i, timestamp, l.view(), r.view())
             .unwrap_or_else(|e| panic!("frame {i}: {e}"));
-        truth.push(first_inverse * frame.pose);
-        timestamps.push(frame.timestamp);
+        truth.push(first_inverse * sequence.pose(i));
+        timestamps.push(timestamp);
     }
     slam.finish().unwrap_or_else(|e| panic!("{e}"));
     let estimate = slam
@@ -195,33 +180,24 @@ fn synthetic_block_loop_500_frames_is_tracked_throughout() {
 
 #[test]
 fn tracking_lost_on_blank_frames_recovers_by_relocalisation() {
-    let mut config = SyntheticConfig::for_scene(SceneName::Straight);
-    config.frames = Some(60);
-    config.width = 480;
-    config.height = 360;
-    config.focal_length *= 0.75;
-    let sequence = SyntheticSequence::new(config).unwrap_or_else(|e| panic!("{e}"));
-    let cam = *sequence.camera();
-    let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
-    let rig = StereoRig::from_settings(&settings, cam.width, cam.height)
-        .unwrap_or_else(|e| panic!("{e}"));
-    let orb =
-        || Box::new(OrbExtractor::new(OrbConfig::default()).unwrap_or_else(|e| panic!("{e}")));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(orb(), orb(), &rig));
+    let sequence = small_sequence(SceneName::Straight, 60);
+    let mut slam = orb_slam(&sequence);
     // Frames 30–32 are blank (a covered lens): no features, tracking is lost.
     let blank = 30..33;
     for i in 0..sequence.len() {
-        let frame = sequence.render(i, false);
-        let pixels = |data: Vec<u8>| {
-            let data = if blank.contains(&i) {
-                vec![128; data.len()]
-            } else {
-                data
+        let (timestamp, mut l, mut r) = images(&sequence, i);
+        if blank.contains(&i) {
+            let gray = |image: &GrayImage| {
+                GrayImage::from_vec(
+                    vec![128; image.width() * image.height()],
+                    image.width(),
+                    image.height(),
+                )
+                .unwrap_or_else(|e| panic!("{e}"))
             };
-            GrayImage::from_vec(data, frame.width, frame.height).unwrap_or_else(|e| panic!("{e}"))
-        };
-        let (l, r) = (pixels(frame.left.clone()), pixels(frame.right.clone()));
-        slam.process(i, frame.timestamp, l.view(), r.view())
+            (l, r) = (gray(&l), gray(&r));
+        }
+        slam.process(i, timestamp, l.view(), r.view())
             .unwrap_or_else(|e| panic!("frame {i}: {e}"));
     }
     let records = slam.records();

@@ -1,6 +1,7 @@
 //! Synthetic stereo sequences with exact ground truth: a world of textured
-//! planes (a city block, a street, a ring corridor) ray-cast from a
-//! rectified stereo camera along a trajectory, with depth for RGB-D.
+//! planes (a city block, a street, a ring corridor, an open highway with
+//! its texture mostly far away) ray-cast from a rectified stereo camera
+//! along a trajectory, with depth for RGB-D.
 //!
 //! Everything is a pure function of [`SyntheticConfig`] (its seed
 //! included): the same config writes byte-identical files.
