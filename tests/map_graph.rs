@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 
 use nalgebra::{UnitQuaternion, Vector3};
 use proptest::prelude::*;
+use proptest::strategy::ValueTree;
 use spslam::features::pyramid::ScaleTables;
 use spslam::features::{DescriptorRef, DescriptorSet, Keypoint};
 use spslam::map::{
@@ -171,6 +172,176 @@ fn spanning_tree_survives_keyframe_removal() {
     // The first keyframe is never erased.
     map.erase_keyframe(ids[0]).expect("no-op");
     assert!(map.keyframe(ids[0]).is_ok());
+}
+
+/// `n` keyframes at x = 0, 1, …, each with 200 keypoints, none connected.
+fn bare_keyframes(map: &mut Map, n: usize) -> Vec<KeyFrameId> {
+    (0..n)
+        .map(|k| {
+            map.add_keyframe(k, k as f64, pose(k as f64), measurements(200, k, 0, false))
+                .expect("add keyframe")
+        })
+        .collect()
+}
+
+/// `n` points, each seen by every keyframe in `observers` (indices into
+/// `kfs`) at its next free keypoint.
+fn shared_points(
+    map: &mut Map,
+    kfs: &[KeyFrameId],
+    observers: &[usize],
+    n: usize,
+    next_free: &mut [usize],
+) {
+    for _ in 0..n {
+        let p = map
+            .add_map_point(Vector3::new(0.0, 0.0, 5.0), descriptor(), kfs[observers[0]])
+            .expect("add point");
+        for &o in observers {
+            map.add_observation(p, kfs[o], next_free[o])
+                .expect("observe");
+            next_free[o] += 1;
+        }
+    }
+}
+
+/// Walks up the spanning tree from every live keyframe: each reaches `root`
+/// through live parents that list it as a child, within a bounded number of
+/// steps (no cycle).
+fn assert_tree_reaches(map: &Map, root: KeyFrameId) {
+    assert_eq!(map.parent(root), None, "the root has no parent");
+    for kf in map.keyframes() {
+        let mut current = kf.id();
+        let mut steps = 0;
+        while current != root {
+            let parent = map
+                .parent(current)
+                .unwrap_or_else(|| panic!("{current} (above {}) has no parent", kf.id()));
+            assert!(map.keyframe(parent).is_ok(), "{parent} is live");
+            assert!(
+                map.children(parent).contains(&current),
+                "{parent} lists {current}"
+            );
+            current = parent;
+            steps += 1;
+            assert!(steps <= map.keyframe_count(), "cycle above {}", kf.id());
+        }
+    }
+}
+
+/// The pose of every keyframe ever added (live or culled) is recoverable and
+/// still the one `bare_keyframes` gave it.
+fn assert_all_poses_recoverable(map: &Map, kfs: &[KeyFrameId]) {
+    for (k, &kf) in kfs.iter().enumerate() {
+        let recovered = map
+            .pose_cw_of(kf)
+            .unwrap_or_else(|e| panic!("pose of {kf}: {e}"));
+        assert!(
+            (recovered.to_matrix() - pose(k as f64).to_matrix()).amax() < 1e-12,
+            "pose of {kf}"
+        );
+    }
+}
+
+/// Regression: keyframe 1 shares no point with the root, so it used to get
+/// no parent; after erasing 2 (3 and 4 re-attached under 1 and 4) and then
+/// 1, keyframe 4 was left without a parent, and `update_connections(4)`
+/// then took its own child 3 as parent: 3 and 4 were each other's parent.
+#[test]
+fn a_keyframe_without_older_covisible_ones_joins_the_tree_and_no_cycle_forms() {
+    let mut map = Map::new();
+    let k = bare_keyframes(&mut map, 5);
+    let mut next_free = vec![0; 5];
+    shared_points(&mut map, &k, &[1, 2], 20, &mut next_free);
+    shared_points(&mut map, &k, &[2, 3], 20, &mut next_free);
+    shared_points(&mut map, &k, &[2, 4], 30, &mut next_free);
+    shared_points(&mut map, &k, &[1, 4], 20, &mut next_free);
+    shared_points(&mut map, &k, &[3, 4], 20, &mut next_free);
+    for &kf in &k[1..] {
+        map.update_connections(kf);
+    }
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        map.parent(k[1]),
+        Some(k[0]),
+        "no covisible keyframe in the tree: the newest older one"
+    );
+    assert_eq!(map.parent(k[2]), Some(k[1]));
+    assert_eq!(map.parent(k[3]), Some(k[2]));
+    assert_eq!(map.parent(k[4]), Some(k[2]), "the most covisible one");
+    assert_tree_reaches(&map, k[0]);
+
+    map.erase_keyframe(k[2]).expect("erase 2");
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(map.parent(k[4]), Some(k[1]), "covisible with 2's parent");
+    assert_eq!(
+        map.parent(k[3]),
+        Some(k[4]),
+        "covisible with 4, re-attached first"
+    );
+    assert_tree_reaches(&map, k[0]);
+
+    map.erase_keyframe(k[1]).expect("erase 1");
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        map.parent(k[4]),
+        Some(k[0]),
+        "no covisible candidate: 1's parent"
+    );
+    assert_eq!(map.parent(k[3]), Some(k[4]));
+    assert_tree_reaches(&map, k[0]);
+
+    for &kf in &k[3..] {
+        map.update_connections(kf);
+    }
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(map.parent(k[4]), Some(k[0]), "a parent is only set once");
+    assert_eq!(map.parent(k[3]), Some(k[4]));
+    assert_tree_reaches(&map, k[0]);
+    assert_all_poses_recoverable(&map, &k);
+}
+
+/// Regression: a keyframe erased without a parent left no culled record,
+/// so `pose_cw_of` failed for it and for the keyframes culled under it.
+#[test]
+fn every_erased_keyframe_keeps_a_recoverable_pose() {
+    let mut map = Map::new();
+    let k = bare_keyframes(&mut map, 6);
+    let mut next_free = vec![0; 6];
+    // 2 shares nothing with 0 or 1; 3 and 4 hang below it.
+    shared_points(&mut map, &k, &[0, 1], 20, &mut next_free);
+    shared_points(&mut map, &k, &[2, 3], 20, &mut next_free);
+    shared_points(&mut map, &k, &[3, 4], 20, &mut next_free);
+    shared_points(&mut map, &k, &[2, 4], 20, &mut next_free);
+    for &kf in &k[1..5] {
+        map.update_connections(kf);
+    }
+    // Keyframe 5 is never connected: it is not in the tree yet.
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(map.parent(k[2]), Some(k[1]), "the newest older keyframe");
+    assert_eq!(map.parent(k[3]), Some(k[2]));
+    assert_eq!(map.parent(k[5]), None, "not connected yet");
+
+    map.erase_keyframe(k[3]).expect("erase 3");
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    map.erase_keyframe(k[2]).expect("erase 2");
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(
+        map.parent(k[4]),
+        Some(k[1]),
+        "no covisible candidate: 2's parent"
+    );
+    map.erase_keyframe(k[5]).expect("erase the unconnected 5");
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    map.erase_keyframe(k[1]).expect("erase 1");
+    map.check_invariants().unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(map.parent(k[4]), Some(k[0]));
+    assert_tree_reaches(&map, k[0]);
+    assert_all_poses_recoverable(&map, &k);
+    assert!(
+        map.pose_cw_of(KeyFrameId(6)).is_err(),
+        "never a keyframe of this map"
+    );
 }
 
 #[test]
@@ -488,50 +659,183 @@ enum Edit {
     EraseKeyFrame {
         kf: usize,
     },
+    /// `update_connections` on one keyframe: keyframes join the spanning
+    /// tree in random order, some never, some after their neighbours.
+    Connect {
+        kf: usize,
+    },
+    /// `update_connections` on every live keyframe, in id order.
+    ConnectAll,
 }
+
+const EDIT_KEYFRAMES: usize = 6;
 
 fn edit() -> impl Strategy<Value = Edit> {
     prop_oneof![
-        4 => (0..12usize, 0..5usize, 0..8usize).prop_map(|(point, kf, index)| Edit::Observe { point, kf, index }),
-        2 => (0..12usize, 0..5usize).prop_map(|(point, kf)| Edit::Unobserve { point, kf }),
+        4 => (0..12usize, 0..EDIT_KEYFRAMES, 0..8usize).prop_map(|(point, kf, index)| Edit::Observe { point, kf, index }),
+        2 => (0..12usize, 0..EDIT_KEYFRAMES).prop_map(|(point, kf)| Edit::Unobserve { point, kf }),
         1 => (0..12usize, 0..12usize).prop_map(|(old, new)| Edit::Fuse { old, new }),
-        1 => (0..5usize).prop_map(|kf| Edit::EraseKeyFrame { kf }),
+        2 => (0..EDIT_KEYFRAMES).prop_map(|kf| Edit::EraseKeyFrame { kf }),
+        2 => (0..EDIT_KEYFRAMES).prop_map(|kf| Edit::Connect { kf }),
+        1 => Just(Edit::ConnectAll),
     ]
 }
 
-proptest! {
-    #[test]
-    fn random_edits_keep_the_map_consistent(edits in proptest::collection::vec(edit(), 1..60)) {
-        let mut map = Map::new();
-        let kfs: Vec<KeyFrameId> = (0..5)
-            .map(|k| map.add_keyframe(k, k as f64, pose(k as f64), measurements(8, k, 0, k % 2 == 0)).expect("kf"))
-            .collect();
-        let points: Vec<MapPointId> = (0..12)
-            .map(|_| map.add_map_point(Vector3::zeros(), descriptor(), kfs[0]).expect("p"))
-            .collect();
-        for e in edits {
-            // Errors (taken slots, dead ids) are expected; panics and inconsistency are not.
-            let _ = match e {
-                Edit::Observe { point, kf, index } => map.add_observation(points[point], kfs[kf], index),
-                Edit::Unobserve { point, kf } => map.erase_observation(points[point], kfs[kf]),
-                Edit::Fuse { old, new } => map.replace_map_point(points[old], points[new]),
-                Edit::EraseKeyFrame { kf } => map.erase_keyframe(kfs[kf]),
-            };
-            let live: Vec<KeyFrameId> = map.keyframes().map(|k| k.id()).collect();
-            for kf in &live {
-                map.update_connections(*kf);
+fn edits() -> impl Strategy<Value = Vec<Edit>> {
+    proptest::collection::vec(edit(), 1..60)
+}
+
+/// What the keyframes erased in one edit sequence were like when erased.
+#[derive(Debug, Default)]
+struct Erasures {
+    /// Sharing a point with another live keyframe.
+    covisible: usize,
+    /// Sharing no point with any other live keyframe.
+    isolated: usize,
+    /// With spanning-tree children to re-attach.
+    with_children: usize,
+    /// Never connected (not in the spanning tree yet).
+    unconnected: usize,
+}
+
+/// Applies `edits` to a fresh map, checking after each one its invariants,
+/// that every keyframe ever added still has its pose, and, after
+/// `ConnectAll`, that the covisibility weights are the exact counts.
+fn run_edits(edits: &[Edit]) -> Result<Erasures, TestCaseError> {
+    let mut map = Map::new();
+    let kfs: Vec<KeyFrameId> = (0..EDIT_KEYFRAMES)
+        .map(|k| {
+            map.add_keyframe(
+                k,
+                k as f64,
+                pose(k as f64),
+                measurements(8, k, 0, k % 2 == 0),
+            )
+            .expect("kf")
+        })
+        .collect();
+    let points: Vec<MapPointId> = (0..12)
+        .map(|_| {
+            map.add_map_point(Vector3::zeros(), descriptor(), kfs[0])
+                .expect("p")
+        })
+        .collect();
+    let mut connected = BTreeSet::new();
+    let mut erasures = Erasures::default();
+    for e in edits {
+        // Errors (taken slots, dead ids) are expected; panics and inconsistency are not.
+        let _ = match *e {
+            Edit::Observe { point, kf, index } => {
+                map.add_observation(points[point], kfs[kf], index)
             }
-            prop_assert_eq!(map.check_invariants(), Ok(()));
+            Edit::Unobserve { point, kf } => map.erase_observation(points[point], kfs[kf]),
+            Edit::Fuse { old, new } => map.replace_map_point(points[old], points[new]),
+            Edit::EraseKeyFrame { kf } => {
+                let id = kfs[kf];
+                if kf != 0 && map.keyframe(id).is_ok() {
+                    let covisible = map.keyframes().any(|other| {
+                        other.id() != id && brute_force_shared(&map, id, other.id()) > 0
+                    });
+                    if covisible {
+                        erasures.covisible += 1;
+                    } else {
+                        erasures.isolated += 1;
+                    }
+                    if !map.children(id).is_empty() {
+                        erasures.with_children += 1;
+                    }
+                    if !connected.contains(&id) {
+                        erasures.unconnected += 1;
+                    }
+                }
+                map.erase_keyframe(id)
+            }
+            Edit::Connect { kf } => {
+                map.update_connections(kfs[kf]);
+                if map.keyframe(kfs[kf]).is_ok() {
+                    connected.insert(kfs[kf]);
+                }
+                Ok(())
+            }
+            Edit::ConnectAll => {
+                let live: Vec<KeyFrameId> = map.keyframes().map(|k| k.id()).collect();
+                for kf in &live {
+                    map.update_connections(*kf);
+                }
+                connected.extend(live);
+                Ok(())
+            }
+        };
+        prop_assert_eq!(map.check_invariants(), Ok(()), "after {:?}", e);
+        for kf in map.keyframes() {
+            let id = kf.id();
+            if id != kfs[0] {
+                prop_assert_eq!(
+                    map.parent(id).is_some(),
+                    connected.contains(&id),
+                    "{} has a parent once connected",
+                    id
+                );
+            }
+        }
+        for (k, &kf) in kfs.iter().enumerate() {
+            let recovered = map.pose_cw_of(kf);
+            prop_assert!(recovered.is_ok(), "pose of {} after {:?}", kf, e);
+            let error = recovered.map_or(f64::INFINITY, |p| {
+                (p.to_matrix() - pose(k as f64).to_matrix()).amax()
+            });
+            prop_assert!(
+                error < 1e-12,
+                "pose of {} off by {} after {:?}",
+                kf,
+                error,
+                e
+            );
+        }
+        if matches!(e, Edit::ConnectAll) {
             // With every keyframe's connections just recomputed, the weights
             // are the exact shared-point counts, and so symmetric (between
             // updates they may be stale: see `Map::check_invariants`).
+            let live: Vec<KeyFrameId> = map.keyframes().map(|k| k.id()).collect();
             for &a in &live {
                 for &b in &live {
                     if a != b {
-                        prop_assert_eq!(map.covisibility_weight(a, b), brute_force_shared(&map, a, b));
+                        prop_assert_eq!(
+                            map.covisibility_weight(a, b),
+                            brute_force_shared(&map, a, b)
+                        );
                     }
                 }
             }
         }
     }
+    Ok(erasures)
+}
+
+proptest! {
+    #[test]
+    fn random_edits_keep_the_map_consistent(edits in edits()) {
+        run_edits(&edits)?;
+    }
+}
+
+/// The random edits erase keyframes of every kind: sharing points with
+/// others or none, with children to re-attach, and never connected.
+#[test]
+fn random_edits_erase_keyframes_with_and_without_covisible_ones() {
+    let mut runner = proptest::test_runner::TestRunner::deterministic();
+    let mut total = Erasures::default();
+    for _ in 0..256 {
+        let sequence = edits().new_tree(&mut runner).expect("sample").current();
+        let e = run_edits(&sequence).unwrap_or_else(|e| panic!("{e}: {sequence:?}"));
+        total.covisible += e.covisible;
+        total.isolated += e.isolated;
+        total.with_children += e.with_children;
+        total.unconnected += e.unconnected;
+    }
+    println!("{total:?}");
+    assert!(total.covisible >= 20, "{total:?}");
+    assert!(total.isolated >= 20, "{total:?}");
+    assert!(total.with_children >= 20, "{total:?}");
+    assert!(total.unconnected >= 20, "{total:?}");
 }

@@ -1,5 +1,23 @@
 //! The covisibility graph (keyframes sharing map points) and the spanning
 //! tree, as ORB-SLAM3's `UpdateConnections` and `SetBadFlag` maintain them.
+//!
+//! The spanning tree is rooted at the map's first keyframe, which
+//! [`Map::erase_keyframe`] never removes. A keyframe joins the tree the first
+//! time [`Map::update_connections`] runs on it (ORB-SLAM3 adds a keyframe to
+//! the map only after its first `UpdateConnections`; here tracking connects
+//! it right after adding it and its observations). Until then it is
+//! *unconnected*: it has no parent, no keyframe takes it as parent, and it
+//! has no children. From then on it always has a live parent:
+//! - on its first connection its parent becomes its most covisible keyframe
+//!   already in the tree; a keyframe sharing no point with any keyframe in
+//!   the tree is attached to the newest older keyframe in the tree (see
+//!   [`Map::update_connections`] for why);
+//! - removing a keyframe re-attaches its children inside the removed
+//!   keyframe's subtree or to its parent, as `SetBadFlag` does.
+//!
+//! A keyframe only ever attaches to a keyframe already in the tree, and only
+//! when it has no descendants (first connection) or to keyframes outside its
+//! own subtree (re-attachment), so the tree never gets a cycle.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -20,6 +38,9 @@ pub(super) struct CovisibilityNode {
     pub(super) parent: Option<KeyFrameId>,
     /// Spanning-tree children.
     pub(super) children: BTreeSet<KeyFrameId>,
+    /// Whether [`Map::update_connections`] has run on it (ORB-SLAM3's
+    /// `!mbFirstConnection`): it is in the spanning tree.
+    pub(super) connected: bool,
 }
 
 impl CovisibilityNode {
@@ -42,9 +63,25 @@ fn sort_by_weight(list: &mut [(KeyFrameId, usize)]) {
 
 impl Map {
     /// Recounts the points `keyframe` shares with every other keyframe and
-    /// updates both ends of each edge. The first time a keyframe (other than
-    /// the map's first) is connected, its strongest older neighbour becomes
-    /// its spanning-tree parent.
+    /// updates both ends of each edge.
+    ///
+    /// The first time it runs on a keyframe other than the map's first (the
+    /// root), the keyframe joins the spanning tree, as in ORB-SLAM3's
+    /// `UpdateConnections`: its parent becomes its most covisible keyframe
+    /// (most shared points, then lowest id) among those already in the tree.
+    /// ORB-SLAM3 takes the first of its ordered connections, which are all
+    /// in the tree there; keyframes not connected yet are skipped here, so
+    /// a keyframe never becomes the parent of one of its ancestors. Later
+    /// calls leave the parent alone (it only changes when the parent is
+    /// removed), so recomputing connections late cannot create a cycle.
+    ///
+    /// A keyframe sharing no point with any keyframe in the tree is attached
+    /// to the newest older keyframe in the tree (the root at worst), not to
+    /// the root: the newest older keyframe is the one tracking came from, so
+    /// it is the best guess at a spatial neighbour. The root would gather
+    /// unrelated children (which tracking pulls into its local map as the
+    /// root's family) and long, meaningless relative poses for culled
+    /// keyframes.
     pub fn update_connections(&mut self, keyframe: KeyFrameId) {
         let Some(kf) = self.keyframes.get(&keyframe) else {
             return;
@@ -75,25 +112,63 @@ impl Map {
                 .connect(keyframe, *weight);
         }
         sort_by_weight(&mut kept);
-        let first = self.keyframes.keys().next().copied();
+        let first_connection = !self
+            .covisibility
+            .get(&keyframe)
+            .is_some_and(|node| node.connected);
+        let new_parent = if first_connection && !self.is_root(keyframe) {
+            self.first_parent(keyframe, &counts)
+        } else {
+            None
+        };
         let node = self.covisibility.entry(keyframe).or_default();
         node.weights = counts;
         node.ordered = kept;
-        // Only an older keyframe can become the parent, so the tree has no
-        // cycle even when connections are recomputed late.
-        let older = node.ordered.iter().find(|(k, _)| *k < keyframe);
-        let new_parent = match (node.parent, older) {
-            (None, Some((best, _))) if Some(keyframe) != first => Some(*best),
-            _ => None,
-        };
+        node.connected = true;
         if let Some(parent) = new_parent {
-            node.parent = Some(parent);
-            self.covisibility
-                .entry(parent)
-                .or_default()
-                .children
-                .insert(keyframe);
+            self.set_parent(keyframe, parent);
         }
+    }
+
+    /// The parent `keyframe` gets on its first connection: the keyframe in
+    /// the tree sharing most points with it (then the lowest id), or the
+    /// newest older keyframe in the tree when it shares none with one.
+    fn first_parent(
+        &self,
+        keyframe: KeyFrameId,
+        counts: &BTreeMap<KeyFrameId, usize>,
+    ) -> Option<KeyFrameId> {
+        counts
+            .iter()
+            .filter(|(k, _)| **k != keyframe && self.in_tree(**k))
+            .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(a.0)))
+            .map(|(k, _)| *k)
+            .or_else(|| self.newest_older_in_tree(keyframe))
+    }
+
+    /// The newest live keyframe older than `keyframe` in the spanning tree
+    /// (the root at worst; `None` only for the root itself).
+    fn newest_older_in_tree(&self, keyframe: KeyFrameId) -> Option<KeyFrameId> {
+        self.keyframes
+            .range(..keyframe)
+            .rev()
+            .map(|(k, _)| *k)
+            .find(|k| self.in_tree(*k))
+    }
+
+    /// The map's first live keyframe, the spanning tree's root.
+    fn is_root(&self, keyframe: KeyFrameId) -> bool {
+        self.keyframes.keys().next() == Some(&keyframe)
+    }
+
+    /// Whether a live keyframe is in the spanning tree: the root, or
+    /// connected at least once.
+    fn in_tree(&self, keyframe: KeyFrameId) -> bool {
+        self.is_root(keyframe)
+            || self
+                .covisibility
+                .get(&keyframe)
+                .is_some_and(|node| node.connected)
     }
 
     /// The `n` keyframes sharing most points with `keyframe` (all when `n` is
@@ -146,9 +221,14 @@ impl Map {
 
     /// Removes a keyframe from the graph and gives its children new parents,
     /// as ORB-SLAM3's `SetBadFlag`: repeatedly, the child most covisible with
-    /// an already re-attached keyframe (starting from the removed one's
-    /// parent) is attached to it; children left over go to the removed
-    /// keyframe's parent. Returns the removed keyframe's parent.
+    /// a candidate (the removed keyframe's parent, then the children already
+    /// re-attached) is attached to it; children connected to no candidate
+    /// go to the removed keyframe's parent. Returns the keyframe
+    /// its pose is to be kept relative to: its parent, or, for a keyframe
+    /// never connected (so without parent or children), the newest older
+    /// keyframe in the tree, where a first connection without covisible
+    /// keyframes would have attached it. `None` only for the root (which
+    /// [`Map::erase_keyframe`] never removes) or a keyframe that is not live.
     pub(super) fn detach_from_graph(&mut self, keyframe: KeyFrameId) -> Option<KeyFrameId> {
         let node = self.covisibility.remove(&keyframe)?;
         for other in node.weights.keys() {
@@ -156,10 +236,10 @@ impl Map {
                 n.disconnect(keyframe);
             }
         }
-        let parent = node.parent;
-        if let Some(p) = parent.and_then(|p| self.covisibility.get_mut(&p)) {
+        if let Some(p) = node.parent.and_then(|p| self.covisibility.get_mut(&p)) {
             p.children.remove(&keyframe);
         }
+        let parent = node.parent.or_else(|| self.newest_older_in_tree(keyframe));
         let mut orphans: BTreeSet<KeyFrameId> = node.children;
         let mut candidates: BTreeSet<KeyFrameId> = parent.into_iter().collect();
         while !orphans.is_empty() {

@@ -2,6 +2,8 @@
 //! assertions: both sides of every association, observation weights, the
 //! covisibility nodes and the spanning tree, culled keyframes and fused points.
 
+use std::collections::BTreeSet;
+
 use super::ids::{KeyFrameId, MapPointId};
 use super::{observation_weight, Map};
 
@@ -232,6 +234,43 @@ pub enum InvariantViolation {
         /// The child's parent.
         parent: Option<KeyFrameId>,
     },
+    /// A keyframe other than the root, connected at least once, without a
+    /// spanning-tree parent.
+    #[error("{keyframe} is connected but has no spanning-tree parent")]
+    MissingParent {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A keyframe never connected (not in the spanning tree) with a parent.
+    #[error("{keyframe} was never connected but has the parent {parent}")]
+    UnconnectedWithParent {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// Its parent.
+        parent: KeyFrameId,
+    },
+    /// A keyframe other than the root, never connected (not in the
+    /// spanning tree), with a child.
+    #[error("{keyframe} was never connected but has the child {child}")]
+    UnconnectedWithChild {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The child.
+        child: KeyFrameId,
+    },
+    /// Walking up the spanning tree from a keyframe never reaches the root.
+    #[error("the spanning-tree parents of {keyframe} loop")]
+    SpanningTreeCycle {
+        /// The keyframe the walk started from.
+        keyframe: KeyFrameId,
+    },
+    /// A keyframe id the map issued that is neither live nor culled, so
+    /// [`Map::pose_cw_of`] fails for it.
+    #[error("{keyframe} was issued but is neither live nor recorded as culled")]
+    KeyFrameLost {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
     /// A keyframe recorded as culled is still live.
     #[error("{keyframe} is recorded as culled but is live")]
     CulledKeyFrameLive {
@@ -243,6 +282,15 @@ pub enum InvariantViolation {
     CulledChainLoop {
         /// The culled keyframe.
         keyframe: KeyFrameId,
+    },
+    /// A culled keyframe's chain of culled parents ends at a keyframe that
+    /// is neither live nor culled, so [`Map::pose_cw_of`] fails for it.
+    #[error("the parent chain of culled {keyframe} ends at {missing}, which is not live")]
+    CulledChainBroken {
+        /// The culled keyframe.
+        keyframe: KeyFrameId,
+        /// Where the chain ends.
+        missing: KeyFrameId,
     },
     /// A point recorded as fused into another is still live.
     #[error("{point} is recorded as fused into {into} but is live")]
@@ -263,8 +311,8 @@ pub enum InvariantViolation {
 impl Map {
     /// Checks the map's bookkeeping and returns the first inconsistency, in
     /// this order: keyframes (id order), then points (id order), then the
-    /// covisibility nodes and spanning tree (id order), then culled
-    /// keyframes and fused points.
+    /// covisibility nodes and spanning tree (id order, then the walks up the
+    /// tree), then culled keyframes, issued keyframe ids and fused points.
     ///
     /// Checked:
     /// - every keyframe is stored under its own id, which the map issued; its
@@ -283,11 +331,18 @@ impl Map {
     ///   joins a keyframe to itself or has weight 0; each node's ordered
     ///   connections appear in its weight map with the same weight, once,
     ///   by decreasing weight then increasing id;
-    /// - spanning tree: the first keyframe (never culled) has no parent;
-    ///   parents and children are live and the links are mutual;
-    /// - culled keyframes are not live and their chains of culled parents do
-    ///   not loop; fused points are not live and their fusion chains do not
-    ///   loop.
+    /// - spanning tree: the first keyframe (the root, never culled) has no
+    ///   parent; every other keyframe that [`Map::update_connections`] has
+    ///   run on has a parent, and one never connected has neither parent nor
+    ///   children (it joins the tree on its first connection); parents and
+    ///   children are live and the links are mutual; walking up the parents
+    ///   from any keyframe reaches the root (or, at once, an unconnected
+    ///   keyframe), so there is no cycle;
+    /// - every keyframe id the map issued is live or culled; culled
+    ///   keyframes are not live and their chains of culled parents end, without
+    ///   looping, at a live keyframe, so [`Map::pose_cw_of`] works for every
+    ///   keyframe the map ever held; fused points are not live and their
+    ///   fusion chains do not loop.
     ///
     /// Deliberately not checked, because the map does not maintain them:
     /// - that the reference keyframe of an observed point observes it:
@@ -305,14 +360,6 @@ impl Map {
     ///   `update_connections` has run on every live keyframe since the last
     ///   change, the weights are the exact shared-point counts, and so
     ///   symmetric;
-    /// - that the spanning tree has no cycle or that every keyframe but the
-    ///   first has a parent: a keyframe sharing no point with an older one
-    ///   gets no parent, its children lose theirs when it is removed, and
-    ///   [`Map::update_connections`] may then give a parentless keyframe one
-    ///   of its own descendants as parent;
-    /// - that a culled keyframe's parent chain reaches a live keyframe (that
-    ///   [`Map::pose_cw_of`] works for it): a keyframe culled without a
-    ///   parent leaves no record, cutting the chains through it;
     /// - that a point's normal or distances are finite (the normal of a point
     ///   seen from exactly opposite directions is undefined).
     pub fn check_invariants(&self) -> Result<(), InvariantViolation> {
@@ -484,8 +531,18 @@ impl Map {
                     });
                 }
             }
+            let is_root = Some(keyframe) == root;
+            if node.connected || is_root {
+                if node.parent.is_none() && !is_root {
+                    return Err(InvariantViolation::MissingParent { keyframe });
+                }
+            } else if let Some(parent) = node.parent {
+                return Err(InvariantViolation::UnconnectedWithParent { keyframe, parent });
+            } else if let Some(&child) = node.children.first() {
+                return Err(InvariantViolation::UnconnectedWithChild { keyframe, child });
+            }
             if let Some(parent) = node.parent {
-                if Some(keyframe) == root {
+                if is_root {
                     return Err(InvariantViolation::RootHasParent {
                         root: keyframe,
                         parent,
@@ -511,6 +568,33 @@ impl Map {
                 }
             }
         }
+        self.check_tree_reaches_root(root)
+    }
+
+    /// Walks up the parents from every keyframe, with a step bound, after
+    /// `check_covisibility` has checked the links: each walk must end
+    /// at the root or start at an unconnected keyframe (which has no
+    /// children). Keyframes known to reach the root end later walks early,
+    /// so this is linear in the number of keyframes.
+    fn check_tree_reaches_root(&self, root: Option<KeyFrameId>) -> Result<(), InvariantViolation> {
+        let mut reaches_root: BTreeSet<KeyFrameId> = root.into_iter().collect();
+        for &keyframe in self.covisibility.keys() {
+            let mut path = Vec::new();
+            let mut current = keyframe;
+            while !reaches_root.contains(&current) {
+                let Some(parent) = self.covisibility.get(&current).and_then(|n| n.parent) else {
+                    break;
+                };
+                path.push(current);
+                if path.len() > self.covisibility.len() {
+                    return Err(InvariantViolation::SpanningTreeCycle { keyframe });
+                }
+                current = parent;
+            }
+            if reaches_root.contains(&current) {
+                reaches_root.extend(path);
+            }
+        }
         Ok(())
     }
 
@@ -528,6 +612,17 @@ impl Map {
             }
             if self.culled.contains_key(&current) {
                 return Err(InvariantViolation::CulledChainLoop { keyframe });
+            }
+            if !self.keyframes.contains_key(&current) {
+                return Err(InvariantViolation::CulledChainBroken {
+                    keyframe,
+                    missing: current,
+                });
+            }
+        }
+        for keyframe in (0..self.next_keyframe).map(KeyFrameId) {
+            if !self.keyframes.contains_key(&keyframe) && !self.culled.contains_key(&keyframe) {
+                return Err(InvariantViolation::KeyFrameLost { keyframe });
             }
         }
         for (&point, &into) in &self.replaced {
@@ -731,6 +826,103 @@ mod tests {
         assert_eq!(
             map.check_invariants(),
             Err(InvariantViolation::CovisibilityNodeWithoutKeyFrame { keyframe: kfs[2] })
+        );
+    }
+
+    #[test]
+    fn spanning_tree_and_culling_history_corruptions_are_named() {
+        // An unconnected keyframe (no parent, no children) is consistent.
+        let (mut map, kfs, _) = small_map();
+        let pose = Se3::new(UnitQuaternion::identity(), Vector3::new(-3.0, 0.0, 0.0));
+        let pending = map
+            .add_keyframe(3, 3.0, pose, measurements(4))
+            .expect("keyframe");
+        assert_eq!(map.check_invariants(), Ok(()));
+        assert_eq!(map.parent(pending), None);
+        // ... until it is given a child.
+        map.covisibility
+            .get_mut(&pending)
+            .expect("node")
+            .children
+            .insert(kfs[2]);
+        map.covisibility
+            .get_mut(&kfs[0])
+            .expect("node")
+            .children
+            .remove(&kfs[2]);
+        map.covisibility.get_mut(&kfs[2]).expect("node").parent = Some(pending);
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::UnconnectedWithChild {
+                keyframe: pending,
+                child: kfs[2],
+            })
+        );
+
+        // A connected keyframe that lost its parent.
+        let (mut map, kfs, _) = small_map();
+        assert_eq!(map.parent(kfs[2]), Some(kfs[0]));
+        map.covisibility.get_mut(&kfs[2]).expect("node").parent = None;
+        map.covisibility
+            .get_mut(&kfs[0])
+            .expect("node")
+            .children
+            .remove(&kfs[2]);
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::MissingParent { keyframe: kfs[2] })
+        );
+
+        // A keyframe with a parent but marked as never connected.
+        let (mut map, kfs, _) = small_map();
+        map.covisibility.get_mut(&kfs[1]).expect("node").connected = false;
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::UnconnectedWithParent {
+                keyframe: kfs[1],
+                parent: kfs[0],
+            })
+        );
+
+        // Two keyframes that are each other's parent, with mutual links.
+        let (mut map, kfs, _) = small_map();
+        map.covisibility
+            .get_mut(&kfs[0])
+            .expect("node")
+            .children
+            .clear();
+        for (a, b) in [(kfs[1], kfs[2]), (kfs[2], kfs[1])] {
+            let node = map.covisibility.get_mut(&a).expect("node");
+            node.parent = Some(b);
+            node.children = [b].into_iter().collect();
+        }
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::SpanningTreeCycle { keyframe: kfs[1] })
+        );
+
+        // A culled keyframe whose chain ends at a keyframe with no record.
+        let (mut map, kfs, _) = small_map();
+        map.erase_keyframe(kfs[1]).expect("erase");
+        map.erase_keyframe(kfs[2]).expect("erase");
+        assert_eq!(map.check_invariants(), Ok(()));
+        map.culled.get_mut(&kfs[2]).expect("record").parent = kfs[1];
+        map.culled.remove(&kfs[1]);
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::CulledChainBroken {
+                keyframe: kfs[2],
+                missing: kfs[1],
+            })
+        );
+
+        // A removed keyframe that left no record.
+        let (mut map, kfs, _) = small_map();
+        map.erase_keyframe(kfs[2]).expect("erase");
+        map.culled.remove(&kfs[2]);
+        assert_eq!(
+            map.check_invariants(),
+            Err(InvariantViolation::KeyFrameLost { keyframe: kfs[2] })
         );
     }
 }

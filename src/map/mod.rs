@@ -334,7 +334,10 @@ impl Map {
 
     /// Removes a keyframe (ORB-SLAM3's `SetBadFlag`): its observations, its
     /// graph edges (children get new parents), remembering its pose relative
-    /// to its parent for [`Map::pose_cw_of`]. The map's first keyframe stays.
+    /// to its parent (for a keyframe never connected, which has none yet, the
+    /// newest older keyframe in the spanning tree) for [`Map::pose_cw_of`],
+    /// so that works for every keyframe the map ever held. The map's first
+    /// keyframe stays.
     pub fn erase_keyframe(&mut self, keyframe: KeyFrameId) -> Result<()> {
         if self.keyframes.keys().next() == Some(&keyframe) {
             return Ok(());

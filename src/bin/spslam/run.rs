@@ -8,6 +8,7 @@
 //! A frame that cannot be read is skipped and counted as lost (or, with
 //! `--strict`, ends the run).
 
+mod euroc_layout;
 mod evaluation;
 mod frame_loop;
 mod kitti_layout;
@@ -94,12 +95,16 @@ pub struct RunArgs {
     strict: bool,
 }
 
+/// `--extractor`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum ExtractorChoice {
+    // No doc comments on the variants: clap would turn them into a long
+    // list of possible values in `--help`.
     Superpoint,
     Orb,
 }
 
+/// The left and right extractors of `choice`, from the settings.
 fn extractors(
     choice: ExtractorChoice,
     settings: &SlamSettings,

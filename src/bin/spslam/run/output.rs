@@ -53,6 +53,7 @@ struct RunReport<'a> {
     frames: &'a [FrameRecord],
 }
 
+/// `(timestamp, T_wc)` rows as an evaluation trajectory.
 fn to_trajectory(poses: &[(f64, Se3)]) -> Trajectory {
     Trajectory::new(
         poses.iter().map(|(t, _)| *t).collect(),
@@ -78,6 +79,7 @@ fn status_line(end: &RunEnd, processed: usize, total: usize, unreadable: usize) 
     }
 }
 
+/// The totals, the mean timings and one line per atlas map.
 fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
     let t = &s.mean_timings;
     let mut text = format!(
@@ -251,6 +253,7 @@ impl RunOutputs<'_> {
         evaluate_run(self.source, &gt, trajectory, self.out, text)
     }
 
+    /// `report.json`.
     fn write_json(&self, report: &RunReport<'_>) -> Result<PathBuf> {
         let path = self.out.join("report.json");
         let file = std::fs::File::create(&path)

@@ -7,11 +7,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Result};
 use opencv::core::{Mat, MatTraitConst};
 use opencv::imgcodecs;
-use spslam::dataset::{EurocSequence, StereoFrame, StereoRectifier};
+use spslam::dataset::{StereoFrame, StereoRectifier};
 use spslam::eval::{read_euroc, read_kitti, Trajectory};
 use spslam::features::{FeatureError, GrayImage};
 use spslam::settings::SlamSettings;
 
+use super::euroc_layout::EurocLayout;
 use super::kitti_layout::KittiLayout;
 
 /// Why an input image cannot be used.
@@ -93,9 +94,9 @@ impl Unreadable {
 /// A stereo sequence and how to read its images.
 pub enum Source {
     /// KITTI or a synthetic sequence in KITTI's layout.
-    Kitti(KittiLayout),
+    Kitti(Box<KittiLayout>),
     /// An EuRoC ASL folder, rectified on reading.
-    Euroc(EurocSequence, StereoRectifier),
+    Euroc(EurocLayout),
 }
 
 impl Source {
@@ -106,12 +107,8 @@ impl Source {
         };
         let dir = PathBuf::from(dir);
         match kind {
-            "kitti" | "synth" => Ok(Self::Kitti(KittiLayout::open(&dir)?)),
-            "euroc" => {
-                let seq = EurocSequence::open(&dir)?;
-                let rectifier = StereoRectifier::from_euroc(seq.cam0(), seq.cam1())?;
-                Ok(Self::Euroc(seq, rectifier))
-            }
+            "kitti" | "synth" => Ok(Self::Kitti(Box::new(KittiLayout::open(&dir)?))),
+            "euroc" => Ok(Self::Euroc(EurocLayout::open(&dir)?)),
             other => bail!("unknown dataset kind `{other}` (kitti, euroc or synth)"),
         }
     }
@@ -120,7 +117,7 @@ impl Source {
     pub fn frames(&self) -> &[StereoFrame] {
         match self {
             Self::Kitti(seq) => &seq.frames,
-            Self::Euroc(s, _) => s.frames(),
+            Self::Euroc(seq) => &seq.frames,
         }
     }
 
@@ -139,7 +136,8 @@ impl Source {
                 let c = &seq.calibration;
                 SlamSettings::rectified_stereo(c.fx, c.fy, c.cx, c.cy, c.baseline)
             }
-            Self::Euroc(_, r) => {
+            Self::Euroc(seq) => {
+                let r = &seq.rectifier;
                 let mut s =
                     SlamSettings::rectified_stereo(r.fx(), r.fy(), r.cx(), r.cy(), r.baseline());
                 s.camera.fps = 20.0;
@@ -177,7 +175,7 @@ impl Source {
     ) -> std::result::Result<(GrayImage, GrayImage), Unreadable> {
         let (left, right) = match self {
             Self::Kitti(_) => (read_gray(&frame.left)?, read_gray(&frame.right)?),
-            Self::Euroc(_, rectifier) => read_rectified(rectifier, frame)?,
+            Self::Euroc(seq) => read_rectified(&seq.rectifier, frame)?,
         };
         let size = |image: &GrayImage| (image.width(), image.height());
         if let Some((expected_width, expected_height)) = expected {
@@ -220,8 +218,8 @@ impl Source {
                 let n = rows.min(gt.len());
                 Ok(Some(gt.select(&(0..n).collect::<Vec<_>>())))
             }
-            Self::Euroc(s, _) => match s.ground_truth_path() {
-                Some(path) => Ok(Some(read_euroc(&path)?)),
+            Self::Euroc(seq) => match &seq.ground_truth {
+                Some(path) => Ok(Some(read_euroc(path)?)),
                 None => Ok(None),
             },
         }
