@@ -6,12 +6,31 @@
 //! deterministic. Every operation that changes an association keeps both
 //! sides consistent (a keyframe slot and the point's observation list).
 //!
-//! Concurrency: tracking and local mapping run on separate threads and share
-//! one [`SharedMap`], an `Arc<RwLock<Map>>`. Tracking holds the read lock
-//! while it matches against the local map and takes the write lock briefly to
-//! insert a keyframe; local mapping takes the write lock for each of its
-//! steps (triangulation, fusion, applying a BA result, culling). The borrow
-//! checker rules out data races, and no `unsafe` is involved.
+//! # Locking rules
+//!
+//! Tracking and local mapping run on separate threads and share one
+//! [`SharedMap`], an `Arc<RwLock<Map>>`. No `unsafe` is involved; the borrow
+//! checker rules out data races, and these rules keep the threads from
+//! waiting on each other's heavy work:
+//!
+//! - **Tracking** (`Tracker::track`) holds the **read** lock for everything
+//!   it does to a frame: motion model, reference keyframe, relocalisation,
+//!   local-map search, pose refinement, the keyframe decision. The
+//!   visibility statistics it keeps on points ([`MapPoint::visible`],
+//!   [`MapPoint::found`]) are atomic [`Counter`]s, bumped through `&Map`.
+//!   It takes the **write** lock only to initialise a map or insert a
+//!   keyframe, after releasing the read lock; what changed in between
+//!   (points fused or culled) is resolved again at insertion.
+//! - **Local mapping** (`LocalMapper::process_keyframe`) works as snapshot →
+//!   compute → apply for each step: it reads under the read lock
+//!   (triangulation and fusion candidates; the BA problem, a detached copy),
+//!   solves the BA with no lock held, and applies each result under a short
+//!   write lock, skipping keyframes and points culled or fused since the
+//!   snapshot. Refreshing the new keyframe's points and culling take short
+//!   write locks.
+//! - Nobody holds a lock across a channel operation or while waiting for
+//!   another thread, and a guard is never held across a call that takes the
+//!   same lock again.
 
 mod counter;
 mod covisibility;
