@@ -49,6 +49,9 @@ fn euroc_v1_01_excerpt_superpoint_anms() {
         .unwrap_or_else(|e| panic!("{e}"));
     let sp = || Box::new(common::extractor(ExtractorConfig::default()));
     let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    if let Some(mapper) = slam.mapper_mut() {
+        mapper.check_invariants = true;
+    }
     for (i, f) in seq.frames().iter().enumerate() {
         let (l, r) = load(i);
         slam.process(i, f.timestamp, l.view(), r.view())

@@ -26,12 +26,16 @@ fn kitti_06_excerpt_superpoint() {
     let rig = StereoRig::from_settings(&settings, first.width(), first.height())
         .unwrap_or_else(|e| panic!("{e}"));
     // What `spslam run` builds: SuperPoint on the settings' 8 pyramid
-    // levels, kd-tree ANMS, the paper's 20 m depth filter.
+    // levels, kd-tree ANMS, every stereo depth kept (far points tracked
+    // as in ORB-SLAM3).
     let config = settings
         .extractor
         .superpoint_config(settings.extractor.n_levels, 1);
     let sp = || Box::new(common::extractor(config.clone()));
     let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    if let Some(mapper) = slam.mapper_mut() {
+        mapper.check_invariants = true;
+    }
     for (i, f) in seq.frames().iter().enumerate() {
         let l = GrayImage::load(&f.left).unwrap_or_else(|e| panic!("{e}"));
         let r = GrayImage::load(&f.right).unwrap_or_else(|e| panic!("{e}"));

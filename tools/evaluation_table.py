@@ -16,6 +16,7 @@ SEQUENCES = [
     ("euroc", "EuRoC V1_01 excerpt (95 frames, static)"),
     ("straight", "Synthetic straight (500 frames, 499 m)"),
     ("loop", "Synthetic loop (500 frames, 500 m, 2.2 laps)"),
+    ("highway", "Synthetic highway (300 frames, 748 m)"),
 ]
 VARIANTS = [("orb", "ORB"), ("sp_none", "SuperPoint"), ("sp_anms", "SuperPoint + ANMS")]
 

@@ -43,17 +43,36 @@ fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &StereoRig) ->
     out
 }
 
+/// How well the motion model's prediction held.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct MotionModelFit {
+    /// Matches found around the predicted projections.
+    pub matches: usize,
+    /// Of those, inliers after pose refinement.
+    pub inliers: usize,
+}
+
+impl MotionModelFit {
+    /// Fewer than half the matches survived: the prediction was probably
+    /// off (a turn starting or ending) and the refined pose may rest on a
+    /// few far points that cannot fix the translation. Tracking then tries
+    /// the reference keyframe as well and keeps the better pose.
+    pub fn is_doubtful(&self) -> bool {
+        2 * self.inliers < self.matches
+    }
+}
+
 /// ORB-SLAM3's `TrackWithMotionModel`: predicts the pose from the last
 /// frame's and the velocity, searches the last frame's points around their
 /// projections (window 7·scale, then twice that), then refines the pose.
-/// True when at least 10 inliers, and a quarter of the matches, remain.
+/// The fit when at least 10 inliers, and a quarter of the matches, remain.
 pub(crate) fn track_with_motion_model(
     frame: &mut Frame,
     last: &Frame,
     velocity: &Se3,
     map: &Map,
     rig: &StereoRig,
-) -> Result<bool, SlamError> {
+) -> Result<Option<MotionModelFit>, SlamError> {
     frame.pose_cw = velocity.compose(&last.pose_cw);
     frame.map_points.iter_mut().for_each(|p| *p = None);
     let points = last_frame_points(frame, last, map, rig);
@@ -68,14 +87,14 @@ pub(crate) fn track_with_motion_model(
             matches,
             "motion model: too few matches"
         );
-        return Ok(false);
+        return Ok(None);
     }
     let inliers = refine_pose(frame, map, rig)?;
     tracing::debug!(frame = frame.index, matches, inliers, "motion model");
     // ORB-SLAM3 needs 10 inliers; a prediction far off (a turn starting)
     // also finds many wrong matches in its windows, so spslam requires the
     // inliers to be at least a quarter of them too.
-    Ok(inliers >= 10 && 4 * inliers >= matches)
+    Ok((inliers >= 10 && 4 * inliers >= matches).then_some(MotionModelFit { matches, inliers }))
 }
 
 /// ORB-SLAM3's `TrackReferenceKeyFrame`, with descriptor matching (ratio

@@ -171,13 +171,13 @@ impl Tracker {
         let recently_relocalised = self
             .last_relocalisation_frame
             .is_some_and(|r| frame.index < r + self.max_frames);
-        let mut method = if self.state == TrackingState::Ok {
+        let (mut method, doubtful) = if self.state == TrackingState::Ok {
             self.track_frame_to_frame(&mut frame, map)?
         } else if relocalise(&mut frame, map, &self.rig)? {
             self.last_relocalisation_frame = Some(frame.index);
-            TrackingMethod::Relocalisation
+            (TrackingMethod::Relocalisation, false)
         } else {
-            TrackingMethod::None
+            (TrackingMethod::None, false)
         };
         let mut inliers = 0;
         if method != TrackingMethod::None {
@@ -187,13 +187,32 @@ impl Tracker {
                 MIN_LOCAL_MAP_INLIERS
             };
             inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
-            if inliers < needed && method == TrackingMethod::MotionModel {
+            if method == TrackingMethod::MotionModel && (inliers < needed || doubtful) {
                 // The prediction passed its own test but led the local map
-                // astray (a turn starting or ending): start again from the
-                // reference keyframe, as if the motion model had failed.
-                if self.track_reference(&mut frame, map)? {
+                // astray, or kept fewer than half its matches (a turn
+                // starting or ending): try the reference keyframe too and
+                // keep the pose with more local-map inliers.
+                let kept = (
+                    frame.pose_cw,
+                    frame.map_points.clone(),
+                    frame.reference_keyframe,
+                );
+                let alternative = if self.track_reference(&mut frame, map)? {
+                    self.track_local_map_logged(&mut frame, map, recently_relocalised)?
+                } else {
+                    0
+                };
+                tracing::debug!(
+                    frame = frame.index,
+                    motion_model = inliers,
+                    reference_keyframe = alternative,
+                    "doubtful motion model: reference keyframe tried"
+                );
+                if alternative > inliers {
                     method = TrackingMethod::ReferenceKeyFrame;
-                    inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
+                    inliers = alternative;
+                } else {
+                    (frame.pose_cw, frame.map_points, frame.reference_keyframe) = kept;
                 }
             }
             if inliers < needed {
@@ -322,19 +341,19 @@ impl Tracker {
         &mut self,
         frame: &mut Frame,
         map: &Map,
-    ) -> Result<TrackingMethod, SlamError> {
+    ) -> Result<(TrackingMethod, bool), SlamError> {
         let Some(last) = self.last_frame.as_ref() else {
-            return Ok(TrackingMethod::None);
+            return Ok((TrackingMethod::None, false));
         };
         if let Some(velocity) = self.velocity {
-            if track_with_motion_model(frame, last, &velocity, map, &self.rig)? {
-                return Ok(TrackingMethod::MotionModel);
+            if let Some(fit) = track_with_motion_model(frame, last, &velocity, map, &self.rig)? {
+                return Ok((TrackingMethod::MotionModel, fit.is_doubtful()));
             }
         }
         if self.track_reference(frame, map)? {
-            return Ok(TrackingMethod::ReferenceKeyFrame);
+            return Ok((TrackingMethod::ReferenceKeyFrame, false));
         }
-        Ok(TrackingMethod::None)
+        Ok((TrackingMethod::None, false))
     }
 
     fn relative_to_reference(
