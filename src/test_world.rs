@@ -149,6 +149,37 @@ impl PointWorld {
             .unwrap_or_else(|e| panic!("{e}"))
     }
 
+    /// A map of stereo keyframes along +z (0.4 m apart) in which every
+    /// world point seen by a keyframe is a map point observed by every
+    /// keyframe that sees it.
+    pub fn keyframe_chain(&self, keyframes: usize) -> (Map, Vec<(KeyFrameId, View)>) {
+        let mut map = Map::new();
+        let mut kfs = Vec::new();
+        for k in 0..keyframes {
+            let pose = pose_at(Vector3::new(0.0, 0.0, 0.4 * k as f64), 0.0);
+            kfs.push(self.add_keyframe(&mut map, pose, true));
+        }
+        let mut point_ids = std::collections::BTreeMap::new();
+        for (kf, view) in &kfs {
+            for (index, &p) in view.point_of.iter().enumerate() {
+                let id = *point_ids
+                    .entry(p)
+                    .or_insert_with(|| self.add_point(&mut map, p, kfs[0].0));
+                map.add_observation(id, *kf, index)
+                    .unwrap_or_else(|e| panic!("{e}"));
+            }
+        }
+        let ids: Vec<_> = map.map_points().map(|p| p.id()).collect();
+        for id in ids {
+            map.update_descriptor(id);
+            map.update_normal_and_depth(id);
+        }
+        for (kf, _) in &kfs {
+            map.update_connections(*kf);
+        }
+        (map, kfs)
+    }
+
     /// A tracking frame seen from `pose_cw` (its pose left at identity).
     pub fn frame(&self, index: usize, pose_cw: &Se3, stereo: bool) -> (Frame, View) {
         let view = self.view(pose_cw, stereo);

@@ -49,7 +49,11 @@ fn reads_the_shipped_kitti_file_in_orb_slam3_1_0_layout() {
     assert_eq!(s.extractor.n_features, 1000);
     assert_eq!(s.extractor.n_levels, 8);
     assert_eq!(s.extractor.anms, AnmsMethod::Kdtree);
-    assert_eq!(s.max_depth, Some(20.0), "the paper's depth filter");
+    // The paper's 20 m filter is off (0): far points are kept.
+    assert_eq!(
+        s.max_depth, None,
+        "Tracking.maxDepth: 0 turns the filter off"
+    );
 }
 
 #[test]

@@ -152,3 +152,44 @@ impl MappingThread {
         Ok((mapper, self.results.try_iter().collect()))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+
+    use super::MappingThread;
+    use crate::error::SlamError;
+    use crate::mapping::LocalMapper;
+    use crate::test_world::PointWorld;
+
+    #[test]
+    fn a_panicking_mapping_thread_is_an_error_the_caller_sees() {
+        let world = PointWorld::new(21, 600, (12.0, 4.0, 4.0, 30.0));
+        let (map, keyframes) = world.keyframe_chain(3);
+        let mut mapper = LocalMapper::new(world.rig);
+        mapper.set_before_solve(Some(Arc::new(|| {
+            panic!("planted panic before the BA solve")
+        })));
+        let mut thread =
+            MappingThread::spawn(mapper, map.into_shared()).unwrap_or_else(|e| panic!("{e}"));
+        thread
+            .submit(keyframes[2].0, Vec::new())
+            .unwrap_or_else(|e| panic!("{e}"));
+        let deadline = Instant::now() + Duration::from_secs(60);
+        let error = loop {
+            match thread.poll() {
+                Err(e) => break e,
+                Ok(results) => assert!(results.is_empty(), "the keyframe was mapped"),
+            }
+            assert!(Instant::now() < deadline, "the panic was never reported");
+            std::thread::sleep(Duration::from_millis(10));
+        };
+        assert!(
+            matches!(&error, SlamError::MappingThread { reason } if reason.contains("planted panic")),
+            "{error}"
+        );
+        // Later keyframes are refused, not silently dropped.
+        assert!(thread.submit(keyframes[1].0, Vec::new()).is_err());
+    }
+}

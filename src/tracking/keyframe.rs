@@ -66,7 +66,7 @@ pub(crate) fn initialise_map(
 
 /// What [`needs_keyframe`] looks at besides the frame.
 #[derive(Debug, Clone, Copy)]
-pub struct KeyFrameContext {
+pub(crate) struct KeyFrameContext {
     /// The reference keyframe.
     pub reference: KeyFrameId,
     /// Frame index of the last keyframe.

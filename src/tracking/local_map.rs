@@ -53,7 +53,7 @@ fn local_keyframes(frame: &Frame, map: &Map) -> (Vec<KeyFrameId>, Option<KeyFram
 
 /// What local-map tracking found.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct LocalMapOutcome {
+pub(crate) struct LocalMapOutcome {
     /// Inliers after the final refinement.
     pub inliers: usize,
     /// Local keyframes used.

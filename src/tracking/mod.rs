@@ -24,8 +24,7 @@ mod tracker;
 
 pub use frame::Frame;
 pub use frontend::{StereoFeatures, StereoFrontend};
-pub use keyframe::{KeyFrameContext, MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
-pub use local_map::LocalMapOutcome;
+pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use motion::MOTION_MODEL_RADIUS;
 pub use relocalise::MIN_RELOCALISATION_INLIERS;
 pub use tracker::{

@@ -2,55 +2,22 @@
 //! answers: ORB-SLAM3's stereo keyframe rule as a truth table, and
 //! relocalisation from a known pose.
 
-use std::collections::BTreeMap;
-
 use nalgebra::Vector3;
 
 use super::keyframe::{needs_keyframe, KeyFrameContext};
 use super::relocalise::relocalise;
-use crate::map::{KeyFrameId, Map};
 use crate::optim::LieGroup;
-use crate::test_world::{pose_at, PointWorld, View};
+use crate::test_world::{pose_at, PointWorld};
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// A map of stereo keyframes along +z (0.4 m apart) in which every world
-/// point seen by the first keyframe is a map point observed by every
-/// keyframe that sees it.
-fn keyframe_chain(world: &PointWorld, keyframes: usize) -> (Map, Vec<(KeyFrameId, View)>) {
-    let mut map = Map::new();
-    let mut kfs = Vec::new();
-    for k in 0..keyframes {
-        let pose = pose_at(Vector3::new(0.0, 0.0, 0.4 * k as f64), 0.0);
-        kfs.push(world.add_keyframe(&mut map, pose, true));
-    }
-    let mut point_ids = BTreeMap::new();
-    for (kf, view) in &kfs {
-        for (index, &p) in view.point_of.iter().enumerate() {
-            let id = *point_ids
-                .entry(p)
-                .or_insert_with(|| world.add_point(&mut map, p, kfs[0].0));
-            ok(map.add_observation(id, *kf, index));
-        }
-    }
-    let ids: Vec<_> = map.map_points().map(|p| p.id()).collect();
-    for id in ids {
-        map.update_descriptor(id);
-        map.update_normal_and_depth(id);
-    }
-    for (kf, _) in &kfs {
-        map.update_connections(*kf);
-    }
-    (map, kfs)
 }
 
 #[test]
 fn keyframe_decision_follows_orb_slam3_stereo_rule() {
     // Points from 4 to 40 m: about half closer than the rig's 20 m.
     let world = PointWorld::new(3, 900, (14.0, 5.0, 4.0, 40.0));
-    let (map, kfs) = keyframe_chain(&world, 3);
+    let (map, kfs) = world.keyframe_chain(3);
     let reference = kfs[2].0;
     let reference_matches = ok(map.keyframe(reference))
         .observed_points()
@@ -192,7 +159,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
 #[test]
 fn relocalisation_recovers_a_known_pose() {
     let world = PointWorld::new(5, 1500, (15.0, 5.0, 4.0, 35.0));
-    let (map, _) = keyframe_chain(&world, 5);
+    let (map, _) = world.keyframe_chain(5);
     // 0.35 m sideways and 4° away from every keyframe, no prior: the
     // frame starts at the identity pose.
     let truth = pose_at(Vector3::new(0.35, -0.1, 1.3), 4f64.to_radians());
@@ -210,7 +177,7 @@ fn relocalisation_recovers_a_known_pose() {
 #[test]
 fn relocalisation_fails_where_the_map_was_never_seen() {
     let world = PointWorld::new(5, 1500, (15.0, 5.0, 4.0, 35.0));
-    let (map, _) = keyframe_chain(&world, 5);
+    let (map, _) = world.keyframe_chain(5);
     // Other points, with other descriptors.
     let elsewhere = PointWorld::new(99, 1500, (15.0, 5.0, 4.0, 35.0));
     let (mut frame, _) = elsewhere.frame(50, &pose_at(Vector3::zeros(), 0.0), true);
