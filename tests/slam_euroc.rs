@@ -12,7 +12,7 @@ use spslam::eval::{evaluate, read_euroc, EvalOptions, Pairing, Trajectory};
 use spslam::features::{ExtractorConfig, GrayImage};
 use spslam::settings::SlamSettings;
 use spslam::system::StereoSlam;
-use spslam::tracking::{StereoFrontend, TrackingState};
+use spslam::tracking::StereoFrontend;
 
 fn read_gray(path: &std::path::Path) -> opencv::core::Mat {
     let text = path.to_str().unwrap_or_else(|| panic!("non-UTF-8 path"));
@@ -57,12 +57,7 @@ fn euroc_v1_01_excerpt_superpoint_anms() {
         slam.process(i, f.timestamp, l.view(), r.view())
             .unwrap_or_else(|e| panic!("frame {i}: {e}"));
     }
-    let lost: Vec<usize> = slam
-        .records()
-        .iter()
-        .filter(|r| r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect();
+    let lost: Vec<usize> = common::untracked(slam.records());
     let poses = slam.trajectory().unwrap_or_else(|e| panic!("{e}"));
     let positions: Vec<_> = poses.iter().map(|(_, p)| p.translation).collect();
     let spread = positions

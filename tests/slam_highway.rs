@@ -9,7 +9,7 @@ mod common;
 use common::synthetic_slam::{images, orb_slam, rig_of, small_sequence};
 use spslam::dataset::synthetic::SceneName;
 use spslam::system::StereoSlam;
-use spslam::tracking::{StereoFrontend, TrackingState};
+use spslam::tracking::StereoFrontend;
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -26,11 +26,7 @@ fn run(
         ok(slam.process(i, t, l.view(), r.view()));
     }
     ok(slam.finish());
-    slam.records()
-        .iter()
-        .filter(|r| r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect()
+    common::untracked(slam.records())
 }
 
 #[test]

@@ -12,7 +12,7 @@ use spslam::eval::{evaluate, read_kitti, EvalOptions, Pairing, Trajectory};
 use spslam::features::GrayImage;
 use spslam::settings::SlamSettings;
 use spslam::system::StereoSlam;
-use spslam::tracking::{StereoFrontend, TrackingState};
+use spslam::tracking::StereoFrontend;
 
 #[test]
 fn kitti_06_excerpt_superpoint() {
@@ -68,12 +68,7 @@ fn kitti_06_excerpt_superpoint() {
     let drift =
         (gt.poses[last].translation.vector - estimate.poses[last].translation.vector).norm();
     let drift_pct = 100.0 * drift / report.path_length_m;
-    let lost: Vec<usize> = slam
-        .records()
-        .iter()
-        .filter(|r| r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect();
+    let lost: Vec<usize> = common::untracked(slam.records());
     eprintln!(
         "KITTI 06 excerpt: ATE se3 {:.4} m, final drift {drift:.3} m ({drift_pct:.2} %), lost {lost:?}",
         report.ate.se3_rmse

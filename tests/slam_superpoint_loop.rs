@@ -13,7 +13,7 @@ use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
 use spslam::features::GrayImage;
 use spslam::settings::SlamSettings;
 use spslam::system::StereoSlam;
-use spslam::tracking::{StereoFrontend, TrackingState};
+use spslam::tracking::StereoFrontend;
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -66,12 +66,7 @@ fn one_lap_at_480x360_with_superpoint_on_8_levels() {
             ..EvalOptions::default()
         },
     ));
-    let lost: Vec<usize> = slam
-        .records()
-        .iter()
-        .filter(|r| r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect();
+    let lost: Vec<usize> = common::untracked(slam.records());
     eprintln!(
         "loop 480x360, SuperPoint + ANMS on 8 levels: {} frames, ATE se3 {:.3} m, lost {lost:?}",
         sequence.len(),

@@ -100,12 +100,7 @@ fn run_orb_slam_with(
     let summary = slam.summary().unwrap_or_else(|e| panic!("{e}"));
     eprintln!("{scene:?}, ORB: {summary:?}");
     let run = SyntheticRun {
-        lost: slam
-            .records()
-            .iter()
-            .filter(|r| r.state != TrackingState::Ok)
-            .map(|r| r.index)
-            .collect(),
+        lost: common::untracked(slam.records()),
         estimate,
         truth,
         timestamps,
@@ -220,11 +215,7 @@ fn tracking_lost_on_blank_frames_recovers_by_relocalisation() {
         recovered <= blank.end + 2,
         "relocalised only at {recovered}"
     );
-    let lost_after: Vec<usize> = records[recovered..]
-        .iter()
-        .filter(|r| r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect();
+    let lost_after: Vec<usize> = common::untracked(&records[recovered..]);
     assert!(lost_after.is_empty(), "lost again at {lost_after:?}");
     // The relocalised pose is as good as the last one tracked before the
     // blank frames: its error grows by less than 0.1 m across the gap.

@@ -166,11 +166,6 @@ fn tracking_goes_on_while_local_ba_is_solved_and_new_keyframes_abort_it() {
         .collect();
     eprintln!("aborted BAs at frames {aborted:?}");
     assert!(!aborted.is_empty(), "the held BA was not aborted");
-    let lost: Vec<usize> = slam
-        .records()
-        .iter()
-        .filter(|r| r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect();
+    let lost: Vec<usize> = common::untracked(slam.records());
     assert!(lost.is_empty(), "lost frames {lost:?}");
 }

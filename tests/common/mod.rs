@@ -138,3 +138,12 @@ pub fn mutual_nearest_neighbours(a: &[f32], b: &[f32], dim: usize) -> Vec<(usize
         .map(|(i, &j)| (i, j))
         .collect()
 }
+
+/// Indices of the frames in `records` that were not tracked.
+pub fn untracked(records: &[spslam::system::FrameRecord]) -> Vec<usize> {
+    records
+        .iter()
+        .filter(|r| r.state != spslam::tracking::TrackingState::Ok)
+        .map(|r| r.index)
+        .collect()
+}
