@@ -201,14 +201,7 @@ pub(crate) fn apply_fusion(
             }
         }
     }
-    let own: Vec<MapPointId> = map
-        .keyframe(keyframe)
-        .map(|k| k.observed_points().map(|(_, p)| p).collect())
-        .unwrap_or_default();
-    for p in own {
-        map.update_descriptor(p);
-        map.update_normal_and_depth(p);
-    }
+    super::refresh_observed_points(map, keyframe);
     map.update_connections(keyframe);
     Ok(changed)
 }

@@ -67,6 +67,19 @@ pub struct MappingStepTimes {
     pub culling_ms: f64,
 }
 
+/// Recomputes the descriptor, normal and distances of every point
+/// `keyframe` observes (after it gained or fused observations).
+fn refresh_observed_points(map: &mut Map, keyframe: KeyFrameId) {
+    let observed: Vec<MapPointId> = map
+        .keyframe(keyframe)
+        .map(|k| k.observed_points().map(|(_, p)| p).collect())
+        .unwrap_or_default();
+    for p in observed {
+        map.update_descriptor(p);
+        map.update_normal_and_depth(p);
+    }
+}
+
 /// A hook run just before the BA solve, with no lock held (tests hold the
 /// solve there to show that tracking goes on meanwhile).
 pub type SolveHook = Arc<dyn Fn() + Send + Sync>;
@@ -180,14 +193,7 @@ impl LocalMapper {
             if map.keyframe(keyframe).is_err() {
                 return Ok(summary);
             }
-            let observed: Vec<MapPointId> = map
-                .keyframe(keyframe)
-                .map(|k| k.observed_points().map(|(_, p)| p).collect())
-                .unwrap_or_default();
-            for p in observed {
-                map.update_descriptor(p);
-                map.update_normal_and_depth(p);
-            }
+            refresh_observed_points(&mut map, keyframe);
             self.recent_points.extend_from_slice(created);
             map.update_connections(keyframe);
             let culled: PointCullingReport =

@@ -20,6 +20,21 @@ fn keypoint_of(view: &View) -> BTreeMap<usize, usize> {
         .collect()
 }
 
+/// Keypoint lookups of two views and the world points both see, in order.
+#[allow(clippy::type_complexity)]
+fn shared_points(
+    v0: &View,
+    v1: &View,
+) -> (BTreeMap<usize, usize>, BTreeMap<usize, usize>, Vec<usize>) {
+    let (in0, in1) = (keypoint_of(v0), keypoint_of(v1));
+    let shared = in0
+        .keys()
+        .filter(|p| in1.contains_key(p))
+        .copied()
+        .collect();
+    (in0, in1, shared)
+}
+
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
 }
@@ -31,12 +46,7 @@ fn triangulated_points_match_the_ground_truth() {
     // Monocular keyframes 1.8 m apart: every new point needs triangulation.
     let (kf0, v0) = world.add_keyframe(&mut map, pose_at(Vector3::zeros(), 0.0), false);
     let (kf1, v1) = world.add_keyframe(&mut map, pose_at(Vector3::new(1.0, 0.0, 1.5), 0.05), false);
-    let (in0, in1) = (keypoint_of(&v0), keypoint_of(&v1));
-    let shared: Vec<usize> = in0
-        .keys()
-        .filter(|p| in1.contains_key(p))
-        .copied()
-        .collect();
+    let (in0, in1, shared) = shared_points(&v0, &v1);
     assert!(shared.len() > 300, "only {} shared points", shared.len());
     // 40 existing points connect the two keyframes in the covisibility graph.
     for &p in shared.iter().take(40) {
@@ -107,12 +117,7 @@ fn fusion_merges_a_planted_duplicate() {
     let mut map = Map::new();
     let (kf0, v0) = world.add_keyframe(&mut map, pose_at(Vector3::zeros(), 0.0), true);
     let (kf1, v1) = world.add_keyframe(&mut map, pose_at(Vector3::new(0.3, 0.0, 0.8), 0.02), true);
-    let (in0, in1) = (keypoint_of(&v0), keypoint_of(&v1));
-    let shared: Vec<usize> = in0
-        .keys()
-        .filter(|p| in1.contains_key(p))
-        .copied()
-        .collect();
+    let (in0, in1, shared) = shared_points(&v0, &v1);
     assert!(shared.len() > 100);
     let duplicated = shared[shared.len() / 2];
     for &p in &shared {
