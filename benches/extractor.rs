@@ -322,7 +322,7 @@ fn benches(c: &mut Criterion) {
         );
         return;
     }
-    let mut model = SuperPointModel::load(&model_path, None, 0)
+    let mut model = SuperPointModel::load(&model_path, None, 0, spslam::features::Device::Cpu)
         .expect("cannot load the SuperPoint model / ONNX Runtime (set ORT_DYLIB_PATH?)");
     for (name, path) in &frames {
         match path {

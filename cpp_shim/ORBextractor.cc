@@ -125,8 +125,8 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
         modelPath = gModelPath;
         ortLibraryPath = gOrtLibraryPath;
     }
-    if (modelPath.empty())
-        modelPath = EnvOrEmpty("SPSLAM_MODEL");
+    // No explicit model: the library picks the precision's default
+    // ($SPSLAM_MODEL / $SPSLAM_MODEL_INT8, else models/superpoint[_int8].onnx).
     if (ortLibraryPath.empty())
         ortLibraryPath = EnvOrEmpty("SPSLAM_ORT_LIB");
     if (ortLibraryPath.empty())
@@ -136,6 +136,28 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
     const std::string threads = EnvOrEmpty("SPSLAM_THREADS");
     if (!threads.empty())
         config.threads = static_cast<uint32_t>(std::max(0, std::atoi(threads.c_str())));
+    const std::string precision = EnvOrEmpty("SPSLAM_PRECISION");
+    if (precision == "fp32")
+        config.precision = SPSLAM_PRECISION_FP32;
+    else if (precision == "int8")
+        config.precision = SPSLAM_PRECISION_INT8;
+    else if (!precision.empty())
+    {
+        Fail("SPSLAM_PRECISION=" + precision + " is not a precision: use fp32 or int8");
+        return;
+    }
+    const std::string device = EnvOrEmpty("SPSLAM_DEVICE");
+    if (device == "auto")
+        config.device = SPSLAM_DEVICE_AUTO;
+    else if (device == "cpu")
+        config.device = SPSLAM_DEVICE_CPU;
+    else if (device == "cuda")
+        config.device = SPSLAM_DEVICE_CUDA;
+    else if (!device.empty())
+    {
+        Fail("SPSLAM_DEVICE=" + device + " is not a device: use auto, cpu or cuda");
+        return;
+    }
 
     SpslamExtractor* extractor = nullptr;
     if (spslam_extractor_create(&config, &extractor) != SPSLAM_STATUS_OK)

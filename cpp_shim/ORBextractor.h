@@ -15,15 +15,21 @@
  *    ever holds it by pointer.
  *
  * Where the runtime files come from (first match wins):
- *  - the SuperPoint model: the path given to SetRuntimePaths(); else the
- *    environment variable SPSLAM_MODEL; else models/superpoint.onnx in the
- *    spslam source tree the library was built from;
+ *  - the SuperPoint model: the path given to SetRuntimePaths(); else, by
+ *    precision, SPSLAM_MODEL (fp32) or SPSLAM_MODEL_INT8 (int8); else
+ *    models/superpoint.onnx or models/superpoint_int8.onnx in the spslam
+ *    source tree the library was built from;
  *  - ONNX Runtime (libonnxruntime.so.1.31.1): the path given to
  *    SetRuntimePaths(); else SPSLAM_ORT_LIB; else ORT_DYLIB_PATH; else
  *    .deps/onnxruntime/ in the spslam source tree. Only the first extractor in
  *    a process loads the library;
  *  - SPSLAM_THREADS (optional): ONNX Runtime intra-op threads per extractor
- *    (default 0 = let ONNX Runtime decide).
+ *    (default 0 = let ONNX Runtime decide);
+ *  - SPSLAM_PRECISION (optional): fp32 or int8 (default: the library's,
+ *    spslam_config_default());
+ *  - SPSLAM_DEVICE (optional): auto (default: CUDA when the loaded ONNX
+ *    Runtime library offers it, else the CPU), cpu or cuda (the constructor
+ *    fails, IsValid() false, when CUDA cannot be used).
  * Call SetRuntimePaths() before ORB-SLAM3 builds its Tracking object (e.g. in
  * main() before creating ORB_SLAM3::System), for instance from your settings
  * file's "SuperPoint.model" entry.

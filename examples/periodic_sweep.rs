@@ -34,7 +34,12 @@ fn main() -> anyhow::Result<()> {
         .nth(1)
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from("../shared/data"));
-    let mut model = SuperPointModel::load(&default_model_path(), None, 0)?;
+    let mut model = SuperPointModel::load(
+        &default_model_path(),
+        None,
+        0,
+        spslam::features::Device::Cpu,
+    )?;
     let mut cached = vec![];
     for (set, path) in frames(&data) {
         let img = GrayImage::load(&path)?;

@@ -11,9 +11,10 @@
  *  - start every SpslamConfig from spslam_config_default() or
  *    spslam_config_from_orb_slam3().
  *
- * Runtime files: the model path comes from SpslamConfig.model_path, else
- * $SPSLAM_MODEL, else models/superpoint.onnx in the source tree the library was
- * built from; ONNX Runtime from SpslamConfig.ort_library_path, else
+ * Runtime files: the model path comes from SpslamConfig.model_path, else the
+ * precision's default: $SPSLAM_MODEL (fp32) or $SPSLAM_MODEL_INT8 (int8), else
+ * models/superpoint.onnx or models/superpoint_int8.onnx in the source tree the
+ * library was built from; ONNX Runtime from SpslamConfig.ort_library_path, else
  * $ORT_DYLIB_PATH, else .deps/onnxruntime/libonnxruntime.so.1.31.1 there.
  */
 
@@ -63,6 +64,11 @@ enum SpslamStatus
    * any, is unusable afterwards and must be destroyed.
    */
   SPSLAM_STATUS_PANIC = 6,
+  /**
+   * The requested device cannot run the network (e.g. CUDA asked for, but
+   * the loaded ONNX Runtime library is a CPU build or no GPU is usable).
+   */
+  SPSLAM_STATUS_DEVICE_ERROR = 7,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -198,6 +204,14 @@ typedef struct SpslamConfig {
    * ONNX Runtime intra-op threads; 0 lets ONNX Runtime decide.
    */
   uint32_t threads;
+  /**
+   * One of the `SpslamPrecision` values; it picks the default model.
+   */
+  int32_t precision;
+  /**
+   * One of the `SpslamDevice` values.
+   */
+  int32_t device;
 } SpslamConfig;
 
 /**
@@ -373,6 +387,15 @@ void spslam_features_destroy(struct SpslamFeatures *features);
  * `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `size_t`.
  */
 SpslamStatus spslam_extractor_descriptor_len(const struct SpslamExtractor *extractor, size_t *out);
+
+/**
+ * Writes the device the extractor's network runs on to `*out`:
+ * `SPSLAM_DEVICE_CPU` or `SPSLAM_DEVICE_CUDA` (`AUTO` is resolved at creation).
+ *
+ * # Safety
+ * `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `int32_t`.
+ */
+SpslamStatus spslam_extractor_device(const struct SpslamExtractor *extractor, int32_t *out);
 
 /**
  * Writes the number of pyramid levels (ORB-SLAM3's `nlevels`) to `*out`.

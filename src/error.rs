@@ -99,6 +99,14 @@ pub enum SlamError {
         /// What happened.
         reason: String,
     },
+    /// The extractors were handed to a pipeline thread
+    /// ([`StereoSlam::detach_extractors`](crate::system::StereoSlam::detach_extractors)),
+    /// so this system only tracks features extracted elsewhere.
+    #[error("frame {frame}: the extractors run on a pipeline thread; give this system extracted features (process_features)")]
+    ExtractorsDetached {
+        /// The frame's index in the sequence.
+        frame: usize,
+    },
 }
 
 /// Wraps map errors with the step that caused them.

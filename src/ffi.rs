@@ -21,8 +21,8 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
 use crate::features::{
-    AnmsMethod, ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint,
-    PeriodicFilterConfig, SuperPointExtractor,
+    AnmsMethod, Device, ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint,
+    PeriodicFilterConfig, Precision, SuperPointExtractor,
 };
 
 /// The result of every fallible call.
@@ -45,6 +45,32 @@ pub enum SpslamStatus {
     /// A panic was caught inside the library (a bug); the handle involved, if
     /// any, is unusable afterwards and must be destroyed.
     Panic = 6,
+    /// The requested device cannot run the network (e.g. CUDA asked for, but
+    /// the loaded ONNX Runtime library is a CPU build or no GPU is usable).
+    DeviceError = 7,
+}
+
+/// The network's precision (values of [`SpslamConfig::precision`]); each
+/// precision has its own default model file.
+#[repr(i32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpslamPrecision {
+    /// fp32: `$SPSLAM_MODEL`, else `models/superpoint.onnx`.
+    Fp32 = 0,
+    /// int8 (BN-folded, QDQ u8): `$SPSLAM_MODEL_INT8`, else `models/superpoint_int8.onnx`.
+    Int8 = 1,
+}
+
+/// Where ONNX Runtime runs the network (values of [`SpslamConfig::device`]).
+#[repr(i32)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SpslamDevice {
+    /// CUDA when the loaded ONNX Runtime library offers it and it works, else the CPU.
+    Auto = 0,
+    /// The CPU.
+    Cpu = 1,
+    /// CUDA, or `SPSLAM_STATUS_DEVICE_ERROR` at creation when it cannot be used.
+    Cuda = 2,
 }
 
 /// How keypoints are picked from the NMS candidates (values of
@@ -112,6 +138,10 @@ pub struct SpslamConfig {
     pub ort_library_path: *const c_char,
     /// ONNX Runtime intra-op threads; 0 lets ONNX Runtime decide.
     pub threads: u32,
+    /// One of the `SpslamPrecision` values; it picks the default model.
+    pub precision: i32,
+    /// One of the `SpslamDevice` values.
+    pub device: i32,
 }
 
 /// One keypoint, with `cv::KeyPoint`'s fields and ORB-SLAM3's meaning.
@@ -217,6 +247,7 @@ impl From<FeatureError> for FfiError {
             FeatureError::ModelNotFound { .. } | FeatureError::ModelInterface { .. } => {
                 SpslamStatus::ModelError
             }
+            FeatureError::DeviceUnavailable { .. } => SpslamStatus::DeviceError,
             FeatureError::RuntimeLibrary { .. }
             | FeatureError::Runtime(_)
             | FeatureError::OpenCv(_) => SpslamStatus::RuntimeError,
@@ -306,6 +337,35 @@ fn anms_from_c(anms: i32) -> Result<AnmsMethod, FfiError> {
     }
 }
 
+fn precision_from_c(value: i32) -> Result<Precision, FfiError> {
+    match value {
+        x if x == SpslamPrecision::Fp32 as i32 => Ok(Precision::Fp32),
+        x if x == SpslamPrecision::Int8 as i32 => Ok(Precision::Int8),
+        other => Err(FfiError::invalid(format!(
+            "precision = {other}: expected SPSLAM_PRECISION_FP32 (0) or SPSLAM_PRECISION_INT8 (1)"
+        ))),
+    }
+}
+
+fn device_to_c(device: Device) -> i32 {
+    match device {
+        Device::Auto => SpslamDevice::Auto as i32,
+        Device::Cpu => SpslamDevice::Cpu as i32,
+        Device::Cuda => SpslamDevice::Cuda as i32,
+    }
+}
+
+fn device_from_c(value: i32) -> Result<Device, FfiError> {
+    match value {
+        x if x == SpslamDevice::Auto as i32 => Ok(Device::Auto),
+        x if x == SpslamDevice::Cpu as i32 => Ok(Device::Cpu),
+        x if x == SpslamDevice::Cuda as i32 => Ok(Device::Cuda),
+        other => Err(FfiError::invalid(format!(
+            "device = {other}: expected SPSLAM_DEVICE_AUTO (0), SPSLAM_DEVICE_CPU (1) or SPSLAM_DEVICE_CUDA (2)"
+        ))),
+    }
+}
+
 fn to_u32(name: &str, value: usize) -> Result<u32, FfiError> {
     u32::try_from(value)
         .map_err(|_| FfiError::invalid(format!("{name} = {value} does not fit in 32 bits")))
@@ -335,6 +395,11 @@ fn config_to_c(config: &ExtractorConfig) -> Result<SpslamConfig, FfiError> {
         model_path: std::ptr::null(),
         ort_library_path: std::ptr::null(),
         threads: to_u32("threads", config.threads)?,
+        precision: match config.precision {
+            Precision::Fp32 => SpslamPrecision::Fp32 as i32,
+            Precision::Int8 => SpslamPrecision::Int8 as i32,
+        },
+        device: device_to_c(config.device),
     })
 }
 
@@ -366,7 +431,9 @@ unsafe fn config_from_c(c: &SpslamConfig) -> Result<ExtractorConfig, FfiError> {
             min_contrast: p.min_contrast,
             contrast_radius: p.contrast_radius as usize,
         },
-        model_path: model_path.unwrap_or_else(crate::features::default_model_path),
+        precision: precision_from_c(c.precision)?,
+        device: device_from_c(c.device)?,
+        model_path,
         ort_library_path,
         threads: c.threads as usize,
     })
@@ -725,6 +792,25 @@ pub unsafe extern "C" fn spslam_extractor_descriptor_len(
         let handle = unsafe { handle_ref(extractor) }?;
         // SAFETY: forwarded caller contract on `out`.
         unsafe { write_out(out, "out", handle.inner.descriptor_len()) }
+    })
+}
+
+/// Writes the device the extractor's network runs on to `*out`:
+/// `SPSLAM_DEVICE_CPU` or `SPSLAM_DEVICE_CUDA` (`AUTO` is resolved at creation).
+///
+/// # Safety
+/// `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `int32_t`.
+#[no_mangle]
+pub unsafe extern "C" fn spslam_extractor_device(
+    extractor: *const SpslamExtractor,
+    out: *mut i32,
+) -> SpslamStatus {
+    ffi_call("spslam_extractor_device", || {
+        // SAFETY: forwarded caller contract.
+        let handle = unsafe { handle_ref(extractor) }?;
+        let device = device_to_c(handle.inner.device());
+        // SAFETY: forwarded caller contract on `out`.
+        unsafe { write_out(out, "out", device) }
     })
 }
 

@@ -129,7 +129,7 @@ fn configs_out_of_range_are_named() {
 #[test]
 fn a_missing_model_is_named() {
     let config = ExtractorConfig {
-        model_path: PathBuf::from("/nonexistent/superpoint.onnx"),
+        model_path: Some(PathBuf::from("/nonexistent/superpoint.onnx")),
         ..Default::default()
     };
     match SuperPointExtractor::new(config) {
@@ -150,7 +150,7 @@ fn a_malformed_model_is_an_interface_error() {
     let path = dir.join("garbage.onnx");
     std::fs::write(&path, b"this is not an ONNX protobuf").unwrap();
     let result = SuperPointExtractor::new(ExtractorConfig {
-        model_path: path.clone(),
+        model_path: Some(path.clone()),
         ..Default::default()
     });
     std::fs::remove_dir_all(&dir).ok();

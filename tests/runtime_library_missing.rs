@@ -15,7 +15,7 @@ fn a_missing_runtime_library_is_a_clear_error_not_a_panic() {
         PathBuf::from(file!()).canonicalize().unwrap()
     };
     let config = ExtractorConfig {
-        model_path,
+        model_path: Some(model_path),
         ort_library_path: Some(PathBuf::from("/nonexistent/libonnxruntime.so.1.31.1")),
         ..Default::default()
     };

@@ -1,6 +1,6 @@
 use std::path::PathBuf;
 
-use super::FeatureError;
+use super::{Device, FeatureError, Precision};
 
 /// How keypoints are selected from the NMS candidates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -109,8 +109,14 @@ pub struct ExtractorConfig {
     pub anms: AnmsMethod,
     /// The periodic-artefact filter.
     pub periodic_filter: PeriodicFilterConfig,
-    /// The SuperPoint ONNX model.
-    pub model_path: PathBuf,
+    /// The network's precision; it picks the default model file.
+    pub precision: Precision,
+    /// Where ONNX Runtime runs the network.
+    pub device: Device,
+    /// The SuperPoint ONNX model; `None` is the precision's default
+    /// ([`Precision::default_model_path`]). A model given here is used as it
+    /// is, whatever `precision` says.
+    pub model_path: Option<PathBuf>,
     /// The ONNX Runtime shared library; when `None`, `ORT_DYLIB_PATH` and then
     /// the set-up folder `.deps/onnxruntime/` are tried.
     pub ort_library_path: Option<PathBuf>,
@@ -130,22 +136,30 @@ impl Default for ExtractorConfig {
             border: 8,
             anms: AnmsMethod::Kdtree,
             periodic_filter: PeriodicFilterConfig::default(),
-            model_path: default_model_path(),
+            precision: Precision::default(),
+            device: Device::default(),
+            model_path: None,
             ort_library_path: None,
             threads: 0,
         }
     }
 }
 
-/// The model path used when none is given: `SPSLAM_MODEL`, else
+/// The fp32 model used when none is given: `SPSLAM_MODEL`, else
 /// `models/superpoint.onnx` under the crate root (where `make setup` writes it).
 pub fn default_model_path() -> PathBuf {
-    std::env::var_os("SPSLAM_MODEL")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/superpoint.onnx"))
+    Precision::Fp32.default_model_path()
 }
 
 impl ExtractorConfig {
+    /// The model file to load: [`model_path`](Self::model_path), else the
+    /// precision's default.
+    pub fn resolved_model_path(&self) -> PathBuf {
+        self.model_path
+            .clone()
+            .unwrap_or_else(|| self.precision.default_model_path())
+    }
+
     /// Builds a config from ORB-SLAM3's five extractor parameters, with
     /// everything else at its default. See the type's docs for the mapping.
     pub fn from_orb_slam3(

@@ -94,6 +94,14 @@ pub enum FeatureError {
         /// What does not match.
         reason: String,
     },
+    /// The requested device cannot run the network.
+    #[error("cannot run SuperPoint on {device}: {reason}. For CUDA run `make setup-gpu` (it installs ONNX Runtime's GPU build and its CUDA libraries) and set ORT_DYLIB_PATH as it prints, on a machine with an NVIDIA GPU and driver; or choose --device cpu")]
+    DeviceUnavailable {
+        /// The device asked for.
+        device: super::Device,
+        /// What went wrong.
+        reason: String,
+    },
     /// ONNX Runtime failed while loading the model or running it.
     #[error("ONNX Runtime error: {0}")]
     Runtime(String),

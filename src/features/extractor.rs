@@ -61,9 +61,10 @@ impl SuperPointExtractor {
     pub fn new(config: ExtractorConfig) -> Result<Self, FeatureError> {
         config.validate()?;
         let model = SuperPointModel::load(
-            &config.model_path,
+            &config.resolved_model_path(),
             config.ort_library_path.as_deref(),
             config.threads,
+            config.device,
         )?;
         let tables = ScaleTables::new(config.n_features, config.scale_factor, config.n_levels);
         Ok(Self {
@@ -90,6 +91,11 @@ impl SuperPointExtractor {
     /// Floats per descriptor, read from the model.
     pub fn descriptor_len(&self) -> usize {
         self.model.descriptor_len()
+    }
+
+    /// The device the network runs on (`Cpu` or `Cuda`, `Auto` resolved).
+    pub fn device(&self) -> super::Device {
+        self.model.device()
     }
 
     /// What the periodic-artefact filter did on the last extraction.

@@ -7,7 +7,9 @@ use ort::session::builder::GraphOptimizationLevel;
 use ort::session::Session;
 use ort::value::TensorRef;
 
-use super::{FeatureError, GrayImageView};
+use ort::ep::ExecutionProvider;
+
+use super::{Device, FeatureError, GrayImageView};
 
 /// The name of the model's input.
 pub const INPUT_NAME: &str = "image";
@@ -23,6 +25,7 @@ pub struct SuperPointModel {
     session: Session,
     path: PathBuf,
     descriptor_len: usize,
+    device: Device,
 }
 
 impl std::fmt::Debug for SuperPointModel {
@@ -30,17 +33,24 @@ impl std::fmt::Debug for SuperPointModel {
         f.debug_struct("SuperPointModel")
             .field("path", &self.path)
             .field("descriptor_len", &self.descriptor_len)
+            .field("device", &self.device)
             .finish()
     }
 }
 
 impl SuperPointModel {
-    /// Loads the model and checks its interface with one small inference; the
-    /// descriptor length is read from that output.
+    /// Loads the model on `device` and checks its interface with one small
+    /// inference; the descriptor length is read from that output.
+    ///
+    /// `threads` is ONNX Runtime's intra-op thread count (0: its own choice).
+    /// [`Device::Auto`] tries CUDA only when the loaded library offers it and
+    /// falls back to the CPU when the CUDA session cannot be created;
+    /// [`Device::Cuda`] fails with [`FeatureError::DeviceUnavailable`] instead.
     pub fn load(
         path: &Path,
         ort_library: Option<&Path>,
         threads: usize,
+        device: Device,
     ) -> Result<Self, FeatureError> {
         if !path.is_file() {
             return Err(FeatureError::ModelNotFound {
@@ -48,22 +58,36 @@ impl SuperPointModel {
             });
         }
         let environment = super::runtime::environment(ort_library)?;
+        let (session, device) = match device {
+            Device::Cpu => (
+                open_session(&environment, path, threads, false)?,
+                Device::Cpu,
+            ),
+            Device::Cuda => (
+                open_session(&environment, path, threads, true)?,
+                Device::Cuda,
+            ),
+            Device::Auto if cuda_offered() => {
+                match open_session(&environment, path, threads, true) {
+                    Ok(session) => (session, Device::Cuda),
+                    Err(e) => {
+                        tracing::info!("CUDA is offered but unusable ({e}); running on the CPU");
+                        (
+                            open_session(&environment, path, threads, false)?,
+                            Device::Cpu,
+                        )
+                    }
+                }
+            }
+            Device::Auto => (
+                open_session(&environment, path, threads, false)?,
+                Device::Cpu,
+            ),
+        };
         let interface_err = |reason: String| FeatureError::ModelInterface {
             path: path.to_path_buf(),
             reason,
         };
-        let runtime_err = |e: ort::Error<ort::session::builder::SessionBuilder>| {
-            FeatureError::Runtime(e.to_string())
-        };
-        let mut builder = Session::builder(&environment)?
-            .with_optimization_level(GraphOptimizationLevel::Level3)
-            .map_err(runtime_err)?;
-        if threads > 0 {
-            builder = builder.with_intra_threads(threads).map_err(runtime_err)?;
-        }
-        let session = builder
-            .commit_from_file(path)
-            .map_err(|e| interface_err(format!("ONNX Runtime cannot load it: {e}")))?;
         let names = |outlets: &[ort::value::Outlet]| {
             outlets
                 .iter()
@@ -88,6 +112,7 @@ impl SuperPointModel {
             session,
             path: path.to_path_buf(),
             descriptor_len: 0,
+            device,
         };
         let probe = ndarray::Array4::<f32>::zeros((1, 1, 2 * CELL, 2 * CELL));
         let descriptor_len = model.run(probe.view(), |scores, desc| {
@@ -116,6 +141,12 @@ impl SuperPointModel {
     /// The model file.
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// The device the session runs on: [`Device::Cpu`] or [`Device::Cuda`]
+    /// (never `Auto`, which is resolved at load time).
+    pub fn device(&self) -> Device {
+        self.device
     }
 
     /// Runs the network on a [1, 1, H, W] image in [0, 1] and hands the dense
@@ -168,6 +199,54 @@ impl SuperPointModel {
             .map_err(|e| interface_err(e.to_string()))?;
         Ok(consume(scores, desc))
     }
+}
+
+/// Whether the loaded ONNX Runtime library was built with the CUDA execution
+/// provider (the GPU wheel's library is; the default CPU one is not).
+pub fn cuda_offered() -> bool {
+    ort::ep::CUDA::is_available().unwrap_or(false)
+}
+
+fn cuda_unavailable(reason: String) -> FeatureError {
+    let library = if cuda_offered() {
+        "the loaded ONNX Runtime library has the CUDA execution provider, but it cannot run here"
+    } else {
+        "the loaded ONNX Runtime library is a CPU build without the CUDA execution provider"
+    };
+    FeatureError::DeviceUnavailable {
+        device: Device::Cuda,
+        reason: format!("{library}: {reason}"),
+    }
+}
+
+/// Creates a session for `path`, on CUDA when `cuda`: a CUDA provider that
+/// cannot be registered is [`FeatureError::DeviceUnavailable`], not ONNX
+/// Runtime's silent CPU fallback.
+fn open_session(
+    environment: &ort::environment::Environment,
+    path: &Path,
+    threads: usize,
+    cuda: bool,
+) -> Result<Session, FeatureError> {
+    let runtime_err =
+        |e: ort::Error<ort::session::builder::SessionBuilder>| FeatureError::Runtime(e.to_string());
+    let mut builder = Session::builder(environment)?
+        .with_optimization_level(GraphOptimizationLevel::Level3)
+        .map_err(runtime_err)?;
+    if threads > 0 {
+        builder = builder.with_intra_threads(threads).map_err(runtime_err)?;
+    }
+    if cuda {
+        builder = builder
+            .with_execution_providers([ort::ep::CUDA::default().build().error_on_failure()])
+            .map_err(|e| cuda_unavailable(e.to_string()))?;
+    }
+    builder
+        .commit_from_file(path)
+        .map_err(|e| FeatureError::ModelInterface {
+            path: path.to_path_buf(),
+            reason: format!("ONNX Runtime cannot load it: {e}"),
+        })
 }
 
 /// Copies the image into `buffer` as floats in [0, 1], padded by edge

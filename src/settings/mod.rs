@@ -9,7 +9,11 @@
 //! `nLevels`, `iniThFAST`, `minThFAST`). spslam adds a few of its own, all
 //! optional:
 //! - `SuperPoint.anms`: `kdtree` (default), `ssc` or `none`;
-//! - `SuperPoint.model`: path of the ONNX model;
+//! - `SuperPoint.precision`: `fp32` or `int8` (default: see [`Precision`]);
+//!   it picks the default model file;
+//! - `SuperPoint.device`: `auto` (default), `cpu` or `cuda` (ONNX Runtime's
+//!   execution provider);
+//! - `SuperPoint.model`: path of the ONNX model (used whatever the precision);
 //! - `Tracking.maxDepth`: drop stereo points deeper than this many metres (the
 //!   paper's 20 m filter); absent or 0 turns it off.
 
@@ -23,7 +27,7 @@ use serde::Serialize;
 pub use error::{Result, SettingsError};
 use reader::SettingsReader;
 
-use crate::features::{AnmsMethod, ExtractorConfig};
+use crate::features::{AnmsMethod, Device, ExtractorConfig, Precision};
 
 /// A pinhole camera, rectified (stereo) or with radial-tangential distortion.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -70,7 +74,11 @@ pub struct ExtractorSettings {
     pub min_th_fast: i32,
     /// SuperPoint keypoint selection (`SuperPoint.anms`).
     pub anms: AnmsMethod,
-    /// SuperPoint ONNX model (`SuperPoint.model`), if not the default.
+    /// SuperPoint network precision (`SuperPoint.precision`).
+    pub precision: Precision,
+    /// Where the network runs (`SuperPoint.device`).
+    pub device: Device,
+    /// SuperPoint ONNX model (`SuperPoint.model`), if not the precision's default.
     pub model: Option<PathBuf>,
 }
 
@@ -83,6 +91,8 @@ impl Default for ExtractorSettings {
             ini_th_fast: 20,
             min_th_fast: 7,
             anms: AnmsMethod::default(),
+            precision: Precision::default(),
+            device: Device::default(),
             model: None,
         }
     }
@@ -101,9 +111,9 @@ impl ExtractorSettings {
             self.min_th_fast,
         );
         config.anms = self.anms;
-        if let Some(model) = &self.model {
-            config.model_path = model.clone();
-        }
+        config.precision = self.precision;
+        config.device = self.device;
+        config.model_path = self.model.clone();
         config.threads = threads.max(1);
         config
     }
@@ -296,6 +306,18 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
             .parse::<AnmsMethod>()
             .map_err(|_| reader.invalid("SuperPoint.anms", &text, "use kdtree, ssc or none"))?,
     };
+    let precision = match reader.optional_string(&["SuperPoint.precision"])? {
+        None => defaults.precision,
+        Some(text) => text
+            .parse::<Precision>()
+            .map_err(|_| reader.invalid("SuperPoint.precision", &text, "use fp32 or int8"))?,
+    };
+    let device = match reader.optional_string(&["SuperPoint.device"])? {
+        None => defaults.device,
+        Some(text) => text
+            .parse::<Device>()
+            .map_err(|_| reader.invalid("SuperPoint.device", &text, "use auto, cpu or cuda"))?,
+    };
     let model = reader
         .optional_string(&["SuperPoint.model"])?
         .map(|m| resolve_beside(reader.path(), &m));
@@ -306,6 +328,8 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
         ini_th_fast,
         min_th_fast,
         anms,
+        precision,
+        device,
         model,
     })
 }

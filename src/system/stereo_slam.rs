@@ -13,7 +13,10 @@ use crate::features::GrayImageView;
 use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
-use crate::tracking::{StereoFeatures, StereoFrontend, Tracker, TrackingMethod, TrackingState};
+use crate::tracking::{
+    StereoExtractors, StereoFeatures, StereoFrontend, StereoMatcher, Tracker, TrackingMethod,
+    TrackingState,
+};
 
 use super::atlas::{Atlas, MapIndex};
 use super::local_mapping_thread::{MappingResult, MappingThread};
@@ -39,7 +42,8 @@ enum Mapping {
 /// `LoopClosing`, and merges atlas maps.
 pub struct StereoSlam {
     rig: StereoRig,
-    frontend: StereoFrontend,
+    extractors: Option<StereoExtractors>,
+    matcher: StereoMatcher,
     tracker: Tracker,
     mapping: Mapping,
     atlas: Atlas,
@@ -49,9 +53,11 @@ pub struct StereoSlam {
 impl StereoSlam {
     /// A system with an empty atlas (one empty map), mapping inline.
     pub fn new(rig: StereoRig, frontend: StereoFrontend) -> Self {
+        let (extractors, matcher) = frontend.into_parts();
         Self {
             rig,
-            frontend,
+            extractors: Some(extractors),
+            matcher,
             tracker: Tracker::new(rig),
             mapping: Mapping::Inline(LocalMapper::new(rig)),
             atlas: Atlas::new(),
@@ -102,7 +108,18 @@ impl StereoSlam {
         left: GrayImageView<'_>,
         right: GrayImageView<'_>,
     ) -> Result<StereoFeatures, SlamError> {
-        self.frontend.extract(index, left, right)
+        self.extractors
+            .as_mut()
+            .ok_or(SlamError::ExtractorsDetached { frame: index })?
+            .extract(index, left, right)
+    }
+
+    /// Hands the extractors over (once; `None` afterwards), for a pipeline
+    /// that extracts the next frame on its own thread while this one is
+    /// tracked. From then on [`Self::process`] and [`Self::extract`] fail
+    /// with [`SlamError::ExtractorsDetached`]; use [`Self::process_features`].
+    pub fn detach_extractors(&mut self) -> Option<StereoExtractors> {
+        self.extractors.take()
     }
 
     /// Starts over: an empty atlas, tracking not initialised, no records
@@ -198,7 +215,7 @@ impl StereoSlam {
 
     /// The extractor's name.
     pub fn extractor_name(&self) -> &str {
-        self.frontend.extractor_name()
+        self.matcher.extractor_name()
     }
 
     /// The frames processed so far.
@@ -215,7 +232,7 @@ impl StereoSlam {
         right: GrayImageView<'_>,
     ) -> Result<&FrameRecord, SlamError> {
         let start = Instant::now();
-        let features = self.frontend.extract(index, left, right)?;
+        let features = self.extract(index, left, right)?;
         let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
         self.process_features(index, timestamp, features, left, right, extraction_ms)
     }
@@ -267,9 +284,9 @@ impl StereoSlam {
         if self.tracker.should_start_new_map(index) {
             self.start_new_map(index)?;
         }
-        let (frame, stereo_ms) = self
-            .frontend
-            .match_frame(index, timestamp, features, left, right, &self.rig)?;
+        let (frame, stereo_ms) =
+            self.matcher
+                .match_frame(index, timestamp, features, (left, right), &self.rig)?;
         let stereo_points = frame.stereo_count();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),

@@ -3,6 +3,7 @@
 
 use std::time::Instant;
 
+use crate::features::pyramid::ScaleTables;
 use crate::features::{FeatureExtractor, FrameFeatures, GrayImageView};
 use crate::map::StereoMeasurement;
 use crate::matching::{
@@ -22,43 +23,24 @@ pub struct StereoFeatures {
     pub right: FrameFeatures,
 }
 
-/// Two extractors (one per image, so both run at once) and the stereo matcher.
-pub struct StereoFrontend {
+/// The left and right extractors (one per image, so both run at once).
+///
+/// They can live apart from the rest of the system: a pipelined run
+/// extracts frame t+1 on its own thread while frame t is tracked
+/// ([`StereoFrontend::into_parts`]).
+pub struct StereoExtractors {
     left: Box<dyn FeatureExtractor>,
     right: Box<dyn FeatureExtractor>,
-    stereo: StereoParams,
 }
 
-impl StereoFrontend {
-    /// A front end for `rig`. `left` and `right` must be configured alike;
-    /// `periodic` selects SuperPoint's periodic guards (use `false` for ORB).
-    pub fn new(
-        left: Box<dyn FeatureExtractor>,
-        right: Box<dyn FeatureExtractor>,
-        rig: &StereoRig,
-    ) -> Self {
-        let kind_is_float = left.name().starts_with("superpoint");
-        let thresholds = if kind_is_float {
-            DistanceThresholds::SUPERPOINT_L2
-        } else {
-            DistanceThresholds::ORB_HAMMING
-        };
-        let periodic = kind_is_float.then_some(PeriodicGuard::SUPERPOINT);
-        let stereo = StereoParams::new(
-            rig.camera.bf as f32,
-            rig.baseline as f32,
-            thresholds.stereo(),
-            periodic,
-        );
-        Self {
-            left,
-            right,
-            stereo,
-        }
+impl StereoExtractors {
+    /// Two extractors, configured alike.
+    pub fn new(left: Box<dyn FeatureExtractor>, right: Box<dyn FeatureExtractor>) -> Self {
+        Self { left, right }
     }
 
     /// The extractor's name, for reports.
-    pub fn extractor_name(&self) -> &str {
+    pub fn name(&self) -> &str {
         self.left.name()
     }
 
@@ -103,6 +85,94 @@ impl StereoFrontend {
             right: features(right)?,
         })
     }
+}
+
+/// Stereo matching along rows, with the extractor's scale tables and
+/// descriptor thresholds.
+pub struct StereoMatcher {
+    stereo: StereoParams,
+    scales: ScaleTables,
+    name: String,
+}
+
+/// The two extractors and the stereo matcher.
+pub struct StereoFrontend {
+    extractors: StereoExtractors,
+    matcher: StereoMatcher,
+}
+
+impl StereoFrontend {
+    /// A front end for `rig`. `left` and `right` must be configured alike;
+    /// SuperPoint (float descriptors) gets its L2 thresholds and periodic
+    /// guards, ORB its Hamming thresholds.
+    pub fn new(
+        left: Box<dyn FeatureExtractor>,
+        right: Box<dyn FeatureExtractor>,
+        rig: &StereoRig,
+    ) -> Self {
+        let kind_is_float = left.name().starts_with("superpoint");
+        let thresholds = if kind_is_float {
+            DistanceThresholds::SUPERPOINT_L2
+        } else {
+            DistanceThresholds::ORB_HAMMING
+        };
+        let periodic = kind_is_float.then_some(PeriodicGuard::SUPERPOINT);
+        let stereo = StereoParams::new(
+            rig.camera.bf as f32,
+            rig.baseline as f32,
+            thresholds.stereo(),
+            periodic,
+        );
+        let matcher = StereoMatcher {
+            stereo,
+            scales: left.scale_tables().clone(),
+            name: left.name().to_string(),
+        };
+        Self {
+            extractors: StereoExtractors::new(left, right),
+            matcher,
+        }
+    }
+
+    /// The extractors and the matcher, apart.
+    pub fn into_parts(self) -> (StereoExtractors, StereoMatcher) {
+        (self.extractors, self.matcher)
+    }
+
+    /// The extractor's name, for reports.
+    pub fn extractor_name(&self) -> &str {
+        self.extractors.name()
+    }
+
+    /// Extracts the left and right images' features in parallel.
+    pub fn extract(
+        &mut self,
+        index: usize,
+        left_image: GrayImageView<'_>,
+        right_image: GrayImageView<'_>,
+    ) -> Result<StereoFeatures, SlamError> {
+        self.extractors.extract(index, left_image, right_image)
+    }
+
+    /// See [`StereoMatcher::match_frame`].
+    pub fn match_frame(
+        &self,
+        index: usize,
+        timestamp: f64,
+        features: StereoFeatures,
+        images: (GrayImageView<'_>, GrayImageView<'_>),
+        rig: &StereoRig,
+    ) -> Result<(Frame, f64), SlamError> {
+        self.matcher
+            .match_frame(index, timestamp, features, images, rig)
+    }
+}
+
+impl StereoMatcher {
+    /// The extractor's name, for reports.
+    pub fn extractor_name(&self) -> &str {
+        &self.name
+    }
 
     /// Matches extracted features along rows into a frame (the depth filter
     /// applied); returns it with the milliseconds spent.
@@ -111,12 +181,11 @@ impl StereoFrontend {
         index: usize,
         timestamp: f64,
         features: StereoFeatures,
-        left_image: GrayImageView<'_>,
-        right_image: GrayImageView<'_>,
+        (left_image, right_image): (GrayImageView<'_>, GrayImageView<'_>),
         rig: &StereoRig,
     ) -> Result<(Frame, f64), SlamError> {
         let start = Instant::now();
-        let scales = self.left.scale_tables().clone();
+        let scales = self.scales.clone();
         let outcome = match_stereo(
             &features.left,
             &features.right,

@@ -23,7 +23,7 @@ mod search;
 mod tracker;
 
 pub use frame::Frame;
-pub use frontend::{StereoFeatures, StereoFrontend};
+pub use frontend::{StereoExtractors, StereoFeatures, StereoFrontend, StereoMatcher};
 pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use motion::MOTION_MODEL_RADIUS;
 pub use relocalise::MIN_RELOCALISATION_INLIERS;

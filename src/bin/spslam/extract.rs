@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use spslam::features::draw::write_keypoint_image;
 use spslam::features::periodic::dominant_phase_fraction;
-use spslam::features::{AnmsMethod, ExtractorConfig, Features, GrayImage, SuperPointExtractor};
+use spslam::features::{
+    AnmsMethod, Device, ExtractorConfig, Features, GrayImage, Precision, SuperPointExtractor,
+};
 
 #[derive(clap::Args)]
 pub struct ExtractArgs {
@@ -33,7 +35,14 @@ pub struct ExtractArgs {
     /// Turn off the periodic-artefact filter (on by default; see the README).
     #[arg(long)]
     no_periodic_filter: bool,
-    /// The SuperPoint ONNX model [default: $SPSLAM_MODEL or models/superpoint.onnx].
+    /// Network precision; picks the default model (fp32: $SPSLAM_MODEL or
+    /// models/superpoint.onnx; int8: $SPSLAM_MODEL_INT8 or models/superpoint_int8.onnx).
+    #[arg(long, default_value_t = Precision::default())]
+    precision: Precision,
+    /// Where the network runs: auto (CUDA when the ONNX Runtime library offers it), cpu or cuda.
+    #[arg(long, default_value_t = Device::default())]
+    device: Device,
+    /// The SuperPoint ONNX model [default: the precision's model].
     #[arg(long)]
     model: Option<PathBuf>,
     /// ONNX Runtime's shared library [default: $ORT_DYLIB_PATH or .deps/onnxruntime/].
@@ -60,7 +69,9 @@ pub fn run_extract(args: ExtractArgs) -> Result<()> {
         min_threshold: defaults.min_threshold.min(args.threshold),
         nms_radius: args.nms_radius,
         anms: args.anms,
-        model_path: args.model.clone().unwrap_or(defaults.model_path.clone()),
+        precision: args.precision,
+        device: args.device,
+        model_path: args.model.clone(),
         ort_library_path: args.ort_lib.clone(),
         threads: args.threads,
         ..defaults

@@ -24,7 +24,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use spslam::camera::StereoRig;
 use spslam::dataset::StereoFrame;
 use spslam::features::{
-    AnmsMethod, FeatureExtractor, OrbConfig, OrbExtractor, SuperPointExtractor,
+    AnmsMethod, Device, FeatureExtractor, OrbConfig, OrbExtractor, Precision, SuperPointExtractor,
 };
 use spslam::settings::SlamSettings;
 use spslam::system::StereoSlam;
@@ -85,6 +85,12 @@ pub struct RunArgs {
     /// Pyramid levels for the extractor [default: the settings' nLevels].
     #[arg(long)]
     levels: Option<usize>,
+    /// SuperPoint network precision: fp32 or int8 [default: the settings' SuperPoint.precision].
+    #[arg(long)]
+    precision: Option<Precision>,
+    /// Where SuperPoint runs: auto, cpu or cuda [default: the settings' SuperPoint.device].
+    #[arg(long)]
+    device: Option<Device>,
     /// Run local mapping inline after each keyframe (deterministic, slower)
     /// instead of on its own thread.
     #[arg(long)]
@@ -148,6 +154,12 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     };
     if let Some(anms) = args.anms {
         settings.extractor.anms = anms;
+    }
+    if let Some(precision) = args.precision {
+        settings.extractor.precision = precision;
+    }
+    if let Some(device) = args.device {
+        settings.extractor.device = device;
     }
     let frames: Vec<StereoFrame> = source
         .frames()
