@@ -50,6 +50,10 @@ pub trait FeatureExtractor: Send {
     fn scale_tables(&self) -> &ScaleTables;
     /// A short name for logs and reports, e.g. `superpoint+kdtree` or `orb`.
     fn name(&self) -> &str;
+    /// How it runs, for reports: e.g. `int8 on cpu, 2 levels`.
+    fn inference(&self) -> String {
+        format!("cpu, {} levels", self.scale_tables().n_levels())
+    }
 }
 
 impl FeatureExtractor for SuperPointExtractor {
@@ -67,5 +71,14 @@ impl FeatureExtractor for SuperPointExtractor {
             super::AnmsMethod::Ssc => "superpoint+anms-ssc",
             super::AnmsMethod::None => "superpoint",
         }
+    }
+
+    fn inference(&self) -> String {
+        format!(
+            "{} on {}, {} levels",
+            self.config().precision,
+            self.device(),
+            self.scale_tables().n_levels()
+        )
     }
 }

@@ -13,6 +13,7 @@ mod evaluation;
 mod frame_loop;
 mod kitti_layout;
 mod output;
+mod pipeline;
 mod signals;
 mod source;
 
@@ -32,6 +33,7 @@ use spslam::tracking::StereoFrontend;
 
 use frame_loop::{FrameLoop, RunEnd};
 use output::RunOutputs;
+use pipeline::with_extraction_stage;
 use signals::StopRequest;
 use source::Source;
 
@@ -174,6 +176,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     let rig = StereoRig::from_settings(&settings, size.0, size.1)?;
     let levels = args.levels.unwrap_or(settings.extractor.n_levels);
     let (left, right) = extractors(args.extractor, &settings, levels)?;
+    let inference = left.inference();
     let frontend = StereoFrontend::new(left, right, &rig);
     let mut slam = StereoSlam::new(rig, frontend);
     if let Some(mapper) = slam.mapper_mut() {
@@ -194,14 +197,18 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     );
     let mut unreadable = Vec::new();
     let frame_loop = FrameLoop {
-        source: &source,
         frames: &frames,
-        size,
         strict: args.strict,
         stop: &stop,
         bar: &bar,
     };
-    let mut end = frame_loop.run(&mut slam, &mut unreadable);
+    let extractors = slam
+        .detach_extractors()
+        .context("the system's extractors are already in use")?;
+    let started = std::time::Instant::now();
+    let mut end = with_extraction_stage(&source, &frames, size, extractors, |prepared| {
+        frame_loop.run(&mut slam, prepared, &mut unreadable)
+    });
     // Local mapping finishes its queue; when it fails, what the map holds
     // is still written (the trajectory reads the map directly).
     if let Err(e) = slam.finish() {
@@ -223,6 +230,8 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         source: &source,
         settings: &settings,
         frames_total: frames.len(),
+        inference: &inference,
+        wall_seconds: started.elapsed().as_secs_f64(),
     };
     let problems = outputs.write(&slam, &end, &unreadable);
     for problem in &problems {

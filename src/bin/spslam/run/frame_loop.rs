@@ -1,5 +1,6 @@
-//! The frame loop of `spslam run`: reads each pair, tracks it, skips (or,
-//! with `--strict`, stops at) a frame that cannot be read, and stops
+//! The frame loop of `spslam run`: takes each pair from the extraction
+//! stage ([`pipeline`](super::pipeline)), tracks it, skips (or, with
+//! `--strict`, stops at) a frame that cannot be read, and stops
 //! between frames when a signal asks it to. It never returns early with an
 //! error: every way it ends is a [`RunEnd`], so that the caller writes the
 //! outputs of the frames processed so far on every path.
@@ -11,8 +12,11 @@ use spslam::dataset::StereoFrame;
 use spslam::error::SlamError;
 use spslam::system::StereoSlam;
 
+use std::sync::mpsc::Receiver;
+
+use super::pipeline::{panic_text, PrepareError, Prepared, PreparedFrame};
 use super::signals::StopRequest;
-use super::source::{Source, Unreadable, UnreadableCause};
+use super::source::{Unreadable, UnreadableCause};
 
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -66,14 +70,10 @@ pub struct UnreadableFrame {
     pub reason: String,
 }
 
-/// What the frame loop needs besides the system.
+/// What the frame loop needs besides the system and the extraction stage.
 pub struct FrameLoop<'a> {
-    /// Where the images come from.
-    pub source: &'a Source,
     /// The frames requested.
     pub frames: &'a [StereoFrame],
-    /// The first frame's image size: every image must have it.
-    pub size: (usize, usize),
     /// Stop at the first unreadable frame instead of skipping it.
     pub strict: bool,
     /// Polled between frames.
@@ -91,15 +91,36 @@ enum FrameError {
 }
 
 impl FrameLoop<'_> {
-    /// Processes the frames in order until the end, a signal or a fatal
-    /// error; unreadable frames are recorded in `slam` as lost and listed
-    /// in `unreadable`.
-    pub fn run(&self, slam: &mut StereoSlam, unreadable: &mut Vec<UnreadableFrame>) -> RunEnd {
+    /// Tracks the frames in order, as the extraction stage hands them over,
+    /// until the end, a signal or a fatal error; unreadable frames are
+    /// recorded in `slam` as lost and listed in `unreadable`.
+    pub fn run(
+        &self,
+        slam: &mut StereoSlam,
+        prepared: &Receiver<Prepared>,
+        unreadable: &mut Vec<UnreadableFrame>,
+    ) -> RunEnd {
         for (index, frame) in self.frames.iter().enumerate() {
             if let Some(signal) = self.stop.requested() {
                 return RunEnd::Interrupted { signal };
             }
-            match self.step(slam, index, frame) {
+            let next = match prepared.recv() {
+                Ok(next) if next.index == index => next,
+                Ok(next) => {
+                    return RunEnd::Failed {
+                        error: format!(
+                            "the extraction stage handed over frame {} where {index} was due",
+                            next.index
+                        ),
+                    }
+                }
+                Err(_) => {
+                    return RunEnd::Failed {
+                        error: format!("the extraction stage stopped before frame {index}"),
+                    }
+                }
+            };
+            match self.step(slam, index, frame, next.result) {
                 Ok(()) => {}
                 Err(FrameError::Unreadable(e)) if self.strict => {
                     return RunEnd::Failed {
@@ -128,22 +149,33 @@ impl FrameLoop<'_> {
         RunEnd::Complete
     }
 
-    /// Reads and tracks one frame.
+    /// Tracks one prepared frame.
     fn step(
         &self,
         slam: &mut StereoSlam,
         index: usize,
         frame: &StereoFrame,
+        prepared: Result<PreparedFrame, PrepareError>,
     ) -> Result<(), FrameError> {
-        let (left, right) = self
-            .source
-            .load(frame, Some(self.size))
-            .map_err(FrameError::Unreadable)?;
+        let prepared = prepared.map_err(|e| match e {
+            PrepareError::Unreadable(e) => FrameError::Unreadable(e),
+            PrepareError::Extraction(e) => classify(e, frame),
+            PrepareError::Panicked(message) => {
+                FrameError::Fatal(format!("the extraction stage panicked: {message}"))
+            }
+        })?;
         // A panic in the system (a bug) ends the run like a fatal error,
         // so that the frames before it are still written.
         let outcome = catch_unwind(AssertUnwindSafe(|| {
-            slam.process(index, frame.timestamp, left.view(), right.view())
-                .map(|record| (record.state, record.inliers))
+            slam.process_features(
+                index,
+                frame.timestamp,
+                prepared.features,
+                prepared.left.view(),
+                prepared.right.view(),
+                prepared.extraction_ms,
+            )
+            .map(|record| (record.state, record.inliers))
         }));
         match outcome {
             Ok(Ok((state, inliers))) => {
@@ -153,14 +185,10 @@ impl FrameLoop<'_> {
                 Ok(())
             }
             Ok(Err(e)) => Err(classify(e, frame)),
-            Err(payload) => {
-                let message = payload
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| payload.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "unknown panic".into());
-                Err(FrameError::Fatal(format!("the system panicked: {message}")))
-            }
+            Err(payload) => Err(FrameError::Fatal(format!(
+                "the system panicked: {}",
+                panic_text(payload.as_ref())
+            ))),
         }
     }
 }

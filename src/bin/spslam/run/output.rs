@@ -26,6 +26,10 @@ pub struct RunOutputs<'a> {
     pub settings: &'a SlamSettings,
     /// The number of input frames requested.
     pub frames_total: usize,
+    /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
+    pub inference: &'a str,
+    /// Wall time of the frame loop (extraction pipelined with tracking), s.
+    pub wall_seconds: f64,
 }
 
 /// report.json.
@@ -33,6 +37,12 @@ pub struct RunOutputs<'a> {
 struct RunReport<'a> {
     dataset: &'a str,
     extractor: &'a str,
+    /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
+    inference: &'a str,
+    /// Wall time of the frame loop, s.
+    wall_seconds: f64,
+    /// Wall time per processed frame, ms (the figure to compare runs by).
+    wall_ms_per_frame: f64,
     /// Whether every requested frame was processed.
     complete: bool,
     /// `complete`, `interrupted` or `failed: <error>`.
@@ -162,9 +172,14 @@ impl RunOutputs<'_> {
         let records = slam.records();
         let extractor = slam.extractor_name().to_string();
         let mut text = status_line(end, records.len(), self.frames_total, unreadable.len());
+        let wall_ms_per_frame = 1e3 * self.wall_seconds / records.len().max(1) as f64;
         let summary = match slam.summary() {
             Ok(s) => {
                 text.push_str(&summary_text(self.dataset, &extractor, &s));
+                text.push_str(&format!(
+                    "extractor ran as {}; wall time {:.1} s, {wall_ms_per_frame:.1} ms/frame (extraction of frame t+1 overlaps tracking of frame t)\n",
+                    self.inference, self.wall_seconds
+                ));
                 Some(s)
             }
             Err(e) => {
@@ -199,6 +214,9 @@ impl RunOutputs<'_> {
         let report = RunReport {
             dataset: self.dataset,
             extractor: &extractor,
+            inference: self.inference,
+            wall_seconds: self.wall_seconds,
+            wall_ms_per_frame,
             complete: end.is_complete(),
             end: end.label(),
             signal: end.signal(),
