@@ -5,7 +5,7 @@ mod common;
 use std::path::PathBuf;
 
 use spslam::features::{
-    ExtractorConfig, FeatureError, GrayImage, GrayImageView, PeriodicFilterConfig,
+    Device, ExtractorConfig, FeatureError, GrayImage, GrayImageView, PeriodicFilterConfig,
     SuperPointExtractor,
 };
 
@@ -191,4 +191,37 @@ fn tiny_and_unreadable_images_are_errors() {
         .extract(GrayImageView::new(&flat, 64, 48, 64).unwrap())
         .unwrap();
     assert!(f.is_empty());
+}
+
+#[test]
+fn cuda_without_a_cuda_runtime_is_a_clear_error_and_auto_falls_back_to_the_cpu() {
+    if !common::model_available("cuda_without_a_cuda_runtime_is_a_clear_error") {
+        return;
+    }
+    let config = |device| ExtractorConfig {
+        device,
+        ..Default::default()
+    };
+    match SuperPointExtractor::new(config(Device::Cuda)) {
+        Ok(extractor) => {
+            // Only possible with a CUDA build of ONNX Runtime on a GPU machine.
+            assert!(spslam::features::model::cuda_offered());
+            assert_eq!(extractor.device(), Device::Cuda);
+        }
+        Err(e @ FeatureError::DeviceUnavailable { .. }) => {
+            let text = e.to_string();
+            assert!(text.contains("make setup-gpu"), "{text}");
+            assert!(text.contains("--device cpu"), "{text}");
+            if !spslam::features::model::cuda_offered() {
+                assert!(text.contains("CPU build"), "{text}");
+            }
+        }
+        Err(other) => panic!("expected DeviceUnavailable, got {other:?}"),
+    }
+    let auto = SuperPointExtractor::new(config(Device::Auto)).expect("auto must always work");
+    if !spslam::features::model::cuda_offered() {
+        assert_eq!(auto.device(), Device::Cpu);
+    }
+    let cpu = SuperPointExtractor::new(config(Device::Cpu)).expect("cpu must always work");
+    assert_eq!(cpu.device(), Device::Cpu);
 }

@@ -377,4 +377,48 @@ fn bad_images_are_errors_with_messages() {
         "{}",
         last_error()
     );
+
+    // Precision and device values outside their enums are invalid arguments.
+    for (field, value, needle) in [
+        ("precision", 7, "SPSLAM_PRECISION_INT8"),
+        ("device", -1, "SPSLAM_DEVICE_CUDA"),
+    ] {
+        let mut bad = orb_slam3_c_config();
+        if field == "precision" {
+            bad.precision = value;
+        } else {
+            bad.device = value;
+        }
+        let mut raw = ptr::null_mut();
+        // SAFETY: valid config and out pointer.
+        let status = unsafe { spslam_extractor_create(&bad, &mut raw) };
+        assert_eq!(status, SpslamStatus::InvalidArgument, "{field} = {value}");
+        assert!(raw.is_null());
+        assert!(last_error().contains(needle), "{}", last_error());
+    }
+
+    // CUDA with the CPU build of ONNX Runtime (what `make setup` installs) is
+    // a device error that says what to install; on a CUDA build it works and
+    // the handle reports the device.
+    let mut cuda = orb_slam3_c_config();
+    cuda.device = SpslamDevice::Cuda as i32;
+    let mut raw = ptr::null_mut();
+    // SAFETY: valid config and out pointer.
+    let status = unsafe { spslam_extractor_create(&cuda, &mut raw) };
+    if spslam::features::model::cuda_offered() {
+        if status == SpslamStatus::Ok {
+            let handle = Handle(raw);
+            let mut device = -1;
+            // SAFETY: live handle, writable out pointer.
+            let status = unsafe { spslam_extractor_device(handle.0, &mut device) };
+            assert_eq!(status, SpslamStatus::Ok);
+            assert_eq!(device, SpslamDevice::Cuda as i32);
+        } else {
+            assert_eq!(status, SpslamStatus::DeviceError, "{}", last_error());
+        }
+    } else {
+        assert_eq!(status, SpslamStatus::DeviceError, "{}", last_error());
+        assert!(raw.is_null());
+        assert!(last_error().contains("make setup-gpu"), "{}", last_error());
+    }
 }
