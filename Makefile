@@ -10,7 +10,7 @@ export SPSLAM_DATA
 PYTHON := .deps/venv/bin/python
 OUT ?= out
 
-.PHONY: all setup build rust-release demo test test-rust test-python lint bench header clean-deps
+.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python lint bench header clean-deps
 
 all: build
 
@@ -21,6 +21,17 @@ setup:
 
 build: setup
 	$(CARGO) build --release
+
+# ONNX Runtime's GPU build and its CUDA libraries (PyPI wheels) for
+# `--device cuda`; writes .deps/gpu.env. Needs an NVIDIA GPU and driver to be
+# of use; `make test` never needs it.
+setup-gpu: setup
+	@bash tools/setup_gpu.sh
+
+# The extractor on the GPU vs the CPU (keypoints, descriptors) and its GPU
+# frame rate at KITTI size; fails when CUDA is unusable or they disagree.
+gpu-check: setup-gpu
+	source .deps/gpu.env && $(CARGO) run --release --example gpu_check
 
 # The C++ shim's make fragment builds against the release library.
 rust-release: build
