@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use spslam::features::AnmsMethod;
+use spslam::features::{AnmsMethod, Device, Precision};
 use spslam::settings::{SettingsError, SlamSettings, DEFAULT_TH_DEPTH};
 
 fn write(name: &str, text: &str) -> PathBuf {
@@ -71,10 +71,18 @@ fn reads_the_older_layout_with_camera_bf() {
 fn spslam_keys_and_defaults() {
     let text = "%YAML:1.0\nCamera.fx: 400.0\nCamera.fy: 400.0\nCamera.cx: 320.0\nCamera.cy: 240.0\n\
                 SuperPoint.anms: \"ssc\"\nSuperPoint.model: \"models/sp.onnx\"\nTracking.maxDepth: 20.0\n\
+                SuperPoint.precision: \"int8\"\nSuperPoint.device: \"cpu\"\n\
                 RGBD.DepthMapFactor: 5000.0\n";
     let path = write("ours.yaml", text);
     let s = SlamSettings::from_file(&path).expect("spslam keys");
     assert_eq!(s.extractor.anms, AnmsMethod::Ssc);
+    assert_eq!(s.extractor.precision, Precision::Int8);
+    assert_eq!(s.extractor.device, Device::Cpu);
+    let config = s.extractor.superpoint_config(2, 1);
+    assert_eq!(
+        (config.precision, config.device),
+        (Precision::Int8, Device::Cpu)
+    );
     assert_eq!(
         s.extractor.model.as_deref(),
         path.parent().map(|d| d.join("models/sp.onnx")).as_deref(),
@@ -159,6 +167,20 @@ fn bad_files_give_typed_errors_that_name_the_key() {
         &format!("{OLD_LAYOUT}SuperPoint.anms: \"octree\"\n"),
     );
     assert!(anms.to_string().contains("kdtree, ssc or none"), "{anms}");
+    for (key, value, accepted) in [
+        ("SuperPoint.precision", "fp16", "fp32 or int8"),
+        ("SuperPoint.device", "tpu", "auto, cpu or cuda"),
+    ] {
+        let e = error_for(
+            "inference.yaml",
+            &format!("{OLD_LAYOUT}{key}: \"{value}\"\n"),
+        );
+        assert!(
+            matches!(&e, SettingsError::Invalid { key: k, .. } if k == key),
+            "{key}: {e}"
+        );
+        assert!(e.to_string().contains(accepted), "{e}");
+    }
 }
 
 #[test]
