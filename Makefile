@@ -67,7 +67,7 @@ include cpp_shim/cpp.mk
 test: lint test-rust test-python cpp-test
 
 bench: build
-	$(CARGO) bench --bench anms --bench extractor --bench slam
+	$(CARGO) bench --bench anms --bench extractor --bench precision --bench slam
 
 # Regenerates include/spslam.h from src/ffi.rs.
 header:

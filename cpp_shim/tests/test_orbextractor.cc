@@ -432,6 +432,31 @@ void TestInvalidConstruction(const Params& p, const cv::Mat& gray)
           "tables of an invalid extractor");
     ORB_SLAM3::ORBextractor badParams(-3, 1.2f, 8, 20, 7);
     CHECK(!badParams.IsValid(), "nfeatures=-3 should not be valid");
+
+    // SPSLAM_PRECISION / SPSLAM_DEVICE: unknown values are refused with a
+    // message naming what is accepted; SPSLAM_PRECISION=int8 loads the int8 model.
+    const char* oldPrecision = std::getenv("SPSLAM_PRECISION");
+    const std::string keepPrecision = oldPrecision ? oldPrecision : "";
+    setenv("SPSLAM_PRECISION", "fp16", 1);
+    ORB_SLAM3::ORBextractor badPrecision(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST);
+    CHECK(!badPrecision.IsValid() && badPrecision.GetLastError().find("fp32 or int8") != std::string::npos,
+          "SPSLAM_PRECISION=fp16: %s", badPrecision.GetLastError().c_str());
+    setenv("SPSLAM_PRECISION", "int8", 1);
+    ORB_SLAM3::ORBextractor int8(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST);
+    CHECK(int8.IsValid(), "SPSLAM_PRECISION=int8: %s", int8.GetLastError().c_str());
+    std::vector<cv::KeyPoint> int8Keypoints;
+    cv::Mat int8Descriptors;
+    const int n8 = int8(gray, cv::Mat(), int8Keypoints, int8Descriptors, lap);
+    CHECK(n8 > 0 && int8Descriptors.cols == 256, "int8 extraction: %d keypoints", n8);
+    if (keepPrecision.empty())
+        unsetenv("SPSLAM_PRECISION");
+    else
+        setenv("SPSLAM_PRECISION", keepPrecision.c_str(), 1);
+    setenv("SPSLAM_DEVICE", "tpu", 1);
+    ORB_SLAM3::ORBextractor badDevice(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST);
+    CHECK(!badDevice.IsValid() && badDevice.GetLastError().find("auto, cpu or cuda") != std::string::npos,
+          "SPSLAM_DEVICE=tpu: %s", badDevice.GetLastError().c_str());
+    unsetenv("SPSLAM_DEVICE");
     std::printf("invalid construction: logged, IsValid() false, operator() -> -1\n");
 }
 
