@@ -7,7 +7,7 @@ mod common;
 use spslam::features::pyramid::ScaleTables;
 use spslam::features::{
     DescriptorSet, ExtractorConfig, FeatureExtractor, FrameFeatures, GrayImage, Keypoint,
-    OrbConfig, OrbExtractor,
+    OrbConfig, OrbExtractor, Precision,
 };
 use spslam::matching::dense::sgbm_disparity;
 use spslam::matching::{
@@ -36,16 +36,17 @@ fn agreement(
     (checked, good)
 }
 
-#[test]
-fn superpoint_stereo_on_kitti_agrees_with_sgbm() {
-    let Some(data) = common::setup("superpoint_stereo_on_kitti_agrees_with_sgbm") else {
-        return;
-    };
+/// The stereo check of one precision; returns the fraction of left
+/// keypoints matched by the default (guarded) matcher.
+fn superpoint_stereo_check(data: &std::path::Path, precision: Precision) -> f32 {
     let (left_img, right_img) = (
-        common::kitti_frame(&data, 0, 0),
-        common::kitti_frame(&data, 1, 0),
+        common::kitti_frame(data, 0, 0),
+        common::kitti_frame(data, 1, 0),
     );
-    let mut sp = common::extractor(ExtractorConfig::default());
+    let mut sp = common::extractor(ExtractorConfig {
+        precision,
+        ..ExtractorConfig::default()
+    });
     let left =
         FeatureExtractor::extract(&mut sp, left_img.view()).unwrap_or_else(|e| panic!("{e}"));
     let right =
@@ -99,7 +100,7 @@ fn superpoint_stereo_on_kitti_agrees_with_sgbm() {
             })
             .count();
         println!(
-            "{name}: {} matches of {}; vs SGBM: {good}/{checked} within 1.5 px ({:.1}%), {good2} within 2 px, {good3} within 3 px, {off_by_cell} one cell (8 px) off; rejections {:?}",
+            "{precision} {name}: {} matches of {}; vs SGBM: {good}/{checked} within 1.5 px ({:.1}%), {good2} within 2 px, {good3} within 3 px, {off_by_cell} one cell (8 px) off; rejections {:?}",
             outcome.matched(),
             left.len(),
             100.0 * good as f32 / checked.max(1) as f32,
@@ -121,6 +122,28 @@ fn superpoint_stereo_on_kitti_agrees_with_sgbm() {
     for m in figures.iter().skip(1) {
         assert!(m.0 >= matched, "the guards can only remove matches");
     }
+    matched as f32 / left.len().max(1) as f32
+}
+
+#[test]
+fn superpoint_stereo_on_kitti_agrees_with_sgbm() {
+    let Some(data) = common::setup("superpoint_stereo_on_kitti_agrees_with_sgbm") else {
+        return;
+    };
+    let fp32 = superpoint_stereo_check(&data, Precision::Fp32);
+    let int8 = superpoint_stereo_check(&data, Precision::Int8);
+    println!(
+        "stereo match fraction: fp32 {:.3}, int8 {:.3} ({:+.1} points)",
+        fp32,
+        int8,
+        100.0 * (int8 - fp32)
+    );
+    // The int8 network must not cost stereo matches (the bound is 1
+    // point; the test allows 2 for another machine's kernels).
+    assert!(
+        int8 >= fp32 - 0.02,
+        "int8 matches {int8:.3} of the keypoints, fp32 {fp32:.3}"
+    );
 }
 
 #[test]
