@@ -47,14 +47,23 @@ fn agreement(cpu: &Features, gpu: &Features) -> (f64, f64) {
                 &cpu.descriptors[i * d..(i + 1) * d],
                 &gpu.descriptors[j * d..(j + 1) * d],
             );
-            cosine += ra.iter().zip(rb).map(|(x, y)| f64::from(x * y)).sum::<f64>();
+            cosine += ra
+                .iter()
+                .zip(rb)
+                .map(|(x, y)| f64::from(x * y))
+                .sum::<f64>();
         }
     }
     let n = cpu.keypoints.len().max(1) as f64;
     (matched as f64 / n, cosine / matched.max(1) as f64)
 }
 
-fn check(precision: Precision, levels: usize, frames: usize, image: &GrayImage) -> Result<bool, String> {
+fn check(
+    precision: Precision,
+    levels: usize,
+    frames: usize,
+    image: &GrayImage,
+) -> Result<bool, String> {
     let config = |device| ExtractorConfig {
         precision,
         device,

@@ -215,7 +215,7 @@ fn cuda_unavailable(reason: String) -> FeatureError {
     };
     FeatureError::DeviceUnavailable {
         device: Device::Cuda,
-        reason: format!("{library}: {}", reason.trim_end_matches('.')),
+        reason: format!("{library}: {}", reason.trim_end().trim_end_matches('.')),
     }
 }
 
