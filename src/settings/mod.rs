@@ -9,6 +9,9 @@
 //! `nLevels`, `iniThFAST`, `minThFAST`). spslam adds a few of its own, all
 //! optional:
 //! - `SuperPoint.anms`: `kdtree` (default), `ssc` or `none`;
+//! - `SuperPoint.nLevels`: SuperPoint's pyramid levels in `spslam run`
+//!   (default [`DEFAULT_SUPERPOINT_LEVELS`]; `ORBextractor.nLevels` stays
+//!   ORB's, and the C++ shim's);
 //! - `SuperPoint.precision`: `fp32` or `int8` (default: see [`Precision`]);
 //!   it picks the default model file;
 //! - `SuperPoint.device`: `auto` (default), `cpu` or `cuda` (ONNX Runtime's
@@ -59,6 +62,13 @@ impl CameraSettings {
     }
 }
 
+/// SuperPoint's pyramid levels in `spslam run` when the settings do not say
+/// (`SuperPoint.nLevels`). Chosen by measurement (EVALUATION.md, "Pyramid
+/// levels"): on the KITTI and EuRoC excerpts and the synthetic highway,
+/// more levels did not make the trajectories better, while each level costs
+/// another inference (8 levels: 3.3× the time of one).
+pub const DEFAULT_SUPERPOINT_LEVELS: usize = 1;
+
 /// Feature-extractor parameters, with ORB-SLAM3's names and defaults.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ExtractorSettings {
@@ -66,8 +76,13 @@ pub struct ExtractorSettings {
     pub n_features: usize,
     /// Pyramid scale step (`ORBextractor.scaleFactor`), > 1.
     pub scale_factor: f64,
-    /// Pyramid levels (`ORBextractor.nLevels`).
+    /// Pyramid levels (`ORBextractor.nLevels`): ORB's, and SuperPoint's in
+    /// the C++ shim, which honours it exactly.
     pub n_levels: usize,
+    /// SuperPoint's pyramid levels in `spslam run` (`SuperPoint.nLevels`);
+    /// [`DEFAULT_SUPERPOINT_LEVELS`] when absent, whatever
+    /// `ORBextractor.nLevels` says.
+    pub superpoint_levels: usize,
     /// FAST threshold (`ORBextractor.iniThFAST`); SuperPoint maps it to iniThFAST/4000.
     pub ini_th_fast: i32,
     /// Fallback FAST threshold (`ORBextractor.minThFAST`).
@@ -88,6 +103,7 @@ impl Default for ExtractorSettings {
             n_features: 1000,
             scale_factor: 1.2,
             n_levels: 8,
+            superpoint_levels: DEFAULT_SUPERPOINT_LEVELS,
             ini_th_fast: 20,
             min_th_fast: 7,
             anms: AnmsMethod::default(),
@@ -291,6 +307,12 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
     if !(1..=32).contains(&n_levels) {
         return Err(reader.invalid("ORBextractor.nLevels", n_levels, "must be 1..=32"));
     }
+    let superpoint_levels = reader
+        .optional_i64(&["SuperPoint.nLevels"])?
+        .unwrap_or(defaults.superpoint_levels as i64);
+    if !(1..=32).contains(&superpoint_levels) {
+        return Err(reader.invalid("SuperPoint.nLevels", superpoint_levels, "must be 1..=32"));
+    }
     let threshold = |key: &str, default: i32| -> Result<i32> {
         match reader.optional_i64(&[key])? {
             None => Ok(default),
@@ -325,6 +347,7 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
         n_features: n_features as usize,
         scale_factor,
         n_levels: n_levels as usize,
+        superpoint_levels: superpoint_levels as usize,
         ini_th_fast,
         min_th_fast,
         anms,

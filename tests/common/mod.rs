@@ -8,7 +8,9 @@ pub mod rng;
 pub mod synthetic_ba;
 pub mod synthetic_slam;
 
-use spslam::features::{default_model_path, ExtractorConfig, GrayImage, SuperPointExtractor};
+use spslam::features::{
+    default_model_path, ExtractorConfig, GrayImage, Precision, SuperPointExtractor,
+};
 
 /// True when running under CI, where missing data is a failure, not a skip.
 pub fn under_ci() -> bool {
@@ -67,15 +69,15 @@ pub fn data_dir(test: &str) -> Option<PathBuf> {
     }
 }
 
-/// True when the exported model exists (else skip / fail as above).
+/// True when both exported models (fp32 and int8) exist (else skip / fail as above).
 pub fn model_available(test: &str) -> bool {
-    let path = default_model_path();
-    if path.is_file() {
-        true
-    } else {
-        missing(test, &format!("the SuperPoint model ({})", path.display()));
-        false
+    for path in [default_model_path(), Precision::Int8.default_model_path()] {
+        if !path.is_file() {
+            missing(test, &format!("the SuperPoint model ({})", path.display()));
+            return false;
+        }
     }
+    true
 }
 
 /// Data folder and model both present.

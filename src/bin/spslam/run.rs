@@ -84,7 +84,8 @@ pub struct RunArgs {
     /// Skip keyframe culling (for diagnosis).
     #[arg(long)]
     no_keyframe_culling: bool,
-    /// Pyramid levels for the extractor [default: the settings' nLevels].
+    /// Pyramid levels for the extractor [default: the settings'
+    /// SuperPoint.nLevels (1 when absent) for SuperPoint, ORBextractor.nLevels for ORB].
     #[arg(long)]
     levels: Option<usize>,
     /// SuperPoint network precision: fp32 or int8 [default: the settings' SuperPoint.precision].
@@ -174,7 +175,10 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     }
     let size = source.first_size(&frames)?;
     let rig = StereoRig::from_settings(&settings, size.0, size.1)?;
-    let levels = args.levels.unwrap_or(settings.extractor.n_levels);
+    let levels = args.levels.unwrap_or(match args.extractor {
+        ExtractorChoice::Superpoint => settings.extractor.superpoint_levels,
+        ExtractorChoice::Orb => settings.extractor.n_levels,
+    });
     let (left, right) = extractors(args.extractor, &settings, levels)?;
     let inference = left.inference();
     let frontend = StereoFrontend::new(left, right, &rig);
