@@ -109,6 +109,61 @@ typedef int32_t SpslamAnms;
 #endif // __cplusplus
 
 /**
+ * Where ONNX Runtime runs the network (values of [`SpslamConfig::device`]).
+ */
+enum SpslamDevice
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : int32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * CUDA when the loaded ONNX Runtime library offers it and it works, else the CPU.
+   */
+  SPSLAM_DEVICE_AUTO = 0,
+  /**
+   * The CPU.
+   */
+  SPSLAM_DEVICE_CPU = 1,
+  /**
+   * CUDA, or `SPSLAM_STATUS_DEVICE_ERROR` at creation when it cannot be used.
+   */
+  SPSLAM_DEVICE_CUDA = 2,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum SpslamDevice SpslamDevice;
+#else
+typedef int32_t SpslamDevice;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
+ * The network's precision (values of [`SpslamConfig::precision`]); each
+ * precision has its own default model file.
+ */
+enum SpslamPrecision
+#if defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+  : int32_t
+#endif // defined(__cplusplus) || __STDC_VERSION__ >= 202311L
+ {
+  /**
+   * fp32: `$SPSLAM_MODEL`, else `models/superpoint.onnx`.
+   */
+  SPSLAM_PRECISION_FP32 = 0,
+  /**
+   * int8 (BN-folded, QDQ u8): `$SPSLAM_MODEL_INT8`, else `models/superpoint_int8.onnx`.
+   */
+  SPSLAM_PRECISION_INT8 = 1,
+};
+#ifndef __cplusplus
+#if __STDC_VERSION__ >= 202311L
+typedef enum SpslamPrecision SpslamPrecision;
+#else
+typedef int32_t SpslamPrecision;
+#endif // __STDC_VERSION__ >= 202311L
+#endif // __cplusplus
+
+/**
  * An extractor (opaque). Create with [`spslam_extractor_create`], free with
  * [`spslam_extractor_destroy`]. Not for concurrent use from several threads;
  * one handle per thread.

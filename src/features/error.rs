@@ -81,7 +81,7 @@ pub enum FeatureError {
         reason: String,
     },
     /// The model file is missing.
-    #[error("SuperPoint model not found at {path}; run `make setup` to export models/superpoint.onnx, or pass --model / set SPSLAM_MODEL")]
+    #[error("SuperPoint model not found at {path}; run `make setup` to write models/superpoint.onnx and models/superpoint_int8.onnx, or pass --model / set SPSLAM_MODEL (fp32) or SPSLAM_MODEL_INT8 (int8)")]
     ModelNotFound {
         /// The path tried.
         path: PathBuf,
