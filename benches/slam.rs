@@ -24,9 +24,7 @@ use std::time::Duration;
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use spslam::camera::StereoRig;
 use spslam::dataset::KittiSequence;
-use spslam::features::{
-    default_model_path, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor, SuperPointExtractor,
-};
+use spslam::features::{FeatureExtractor, GrayImage, OrbConfig, OrbExtractor, SuperPointExtractor};
 use spslam::mapping::MappingStepTimes;
 use spslam::settings::SlamSettings;
 use spslam::system::{FrameRecord, StereoSlam};
@@ -159,13 +157,18 @@ fn orb(settings: &SlamSettings) -> Result<Extractors, String> {
     Ok((Box::new(make()?), Box::new(make()?)))
 }
 
+/// SuperPoint as the figures in BENCHMARKS.md were taken: the fp32 network
+/// on the settings' 8 ORB levels (the features only feed SLAM here; their
+/// extraction is not timed).
 fn superpoint(settings: &SlamSettings) -> Result<Extractors, String> {
-    if !default_model_path().exists() {
-        return Err(format!("no model at {}", default_model_path().display()));
-    }
-    let config = settings
+    let mut config = settings
         .extractor
         .superpoint_config(settings.extractor.n_levels, 1);
+    config.precision = spslam::features::Precision::Fp32;
+    let model = config.resolved_model_path();
+    if !model.exists() {
+        return Err(format!("no model at {}", model.display()));
+    }
     let make = || SuperPointExtractor::new(config.clone()).map_err(|e| e.to_string());
     Ok((Box::new(make()?), Box::new(make()?)))
 }

@@ -6,6 +6,7 @@
 #include "ORBextractor.h"
 
 #include <cmath>
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -31,6 +32,13 @@ std::string EnvOrEmpty(const char* name)
 {
     const char* value = std::getenv(name);
     return value ? std::string(value) : std::string();
+}
+
+std::string Lowercase(std::string text)
+{
+    for (char& c : text)
+        c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return text;
 }
 
 std::string LastSpslamError()
@@ -136,8 +144,11 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
     const std::string threads = EnvOrEmpty("SPSLAM_THREADS");
     if (!threads.empty())
         config.threads = static_cast<uint32_t>(std::max(0, std::atoi(threads.c_str())));
-    const std::string precision = EnvOrEmpty("SPSLAM_PRECISION");
-    if (precision == "fp32")
+    // fp32 unless SPSLAM_PRECISION says int8: ORB-SLAM3 runs the extractor on
+    // nLevels (usually 8) levels, where the int8 model's border band costs
+    // accuracy (EVALUATION.md, "Pyramid levels").
+    const std::string precision = Lowercase(EnvOrEmpty("SPSLAM_PRECISION"));
+    if (precision.empty() || precision == "fp32")
         config.precision = SPSLAM_PRECISION_FP32;
     else if (precision == "int8")
         config.precision = SPSLAM_PRECISION_INT8;
@@ -146,7 +157,7 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
         Fail("SPSLAM_PRECISION=" + precision + " is not a precision: use fp32 or int8");
         return;
     }
-    const std::string device = EnvOrEmpty("SPSLAM_DEVICE");
+    const std::string device = Lowercase(EnvOrEmpty("SPSLAM_DEVICE"));
     if (device == "auto")
         config.device = SPSLAM_DEVICE_AUTO;
     else if (device == "cpu")
@@ -163,7 +174,7 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
     if (spslam_extractor_create(&config, &extractor) != SPSLAM_STATUS_OK)
     {
         Fail("cannot create the SuperPoint extractor: " + LastSpslamError() +
-             " (set SPSLAM_MODEL / ORT_DYLIB_PATH or call ORBextractor::SetRuntimePaths)");
+             " (set SPSLAM_MODEL / SPSLAM_MODEL_INT8 / ORT_DYLIB_PATH or call ORBextractor::SetRuntimePaths)");
         return;
     }
 

@@ -25,8 +25,9 @@
  *    a process loads the library;
  *  - SPSLAM_THREADS (optional): ONNX Runtime intra-op threads per extractor
  *    (default 0 = let ONNX Runtime decide);
- *  - SPSLAM_PRECISION (optional): fp32 or int8 (default: the library's,
- *    spslam_config_default());
+ *  - SPSLAM_PRECISION (optional): fp32 (the shim's default: ORB-SLAM3 runs
+ *    nLevels, usually 8, where the int8 model loses accuracy) or int8
+ *    (about 3x faster);
  *  - SPSLAM_DEVICE (optional): auto (default: CUDA when the loaded ONNX
  *    Runtime library offers it, else the CPU), cpu or cuda (the constructor
  *    fails, IsValid() false, when CUDA cannot be used).

@@ -2,7 +2,7 @@
 //! pairs on KITTI 06, to choose the matcher's TH_LOW / TH_HIGH and ratio.
 //!
 //! ```sh
-//! cargo run --release --example descriptor_distances [-- FRAME...]
+//! cargo run --release --example descriptor_distances [-- [fp32|int8] FRAME...]
 //! ```
 //!
 //! Ground truth:
@@ -25,7 +25,7 @@ use std::path::PathBuf;
 
 use opencv::core::{Mat, Point2f, Vector};
 use opencv::prelude::*;
-use spslam::features::{ExtractorConfig, Features, GrayImage, SuperPointExtractor};
+use spslam::features::{ExtractorConfig, Features, GrayImage, Precision, SuperPointExtractor};
 use spslam::matching::dense::sgbm_disparity;
 use spslam::matching::{match_brute_force, MatchParams};
 
@@ -48,7 +48,16 @@ fn main() -> anyhow::Result<()> {
         let p = data.join(format!("kitti/sequences/06/image_{camera}/{i:06}.png"));
         Ok(GrayImage::load(&p)?)
     };
-    let mut extractor = SuperPointExtractor::new(ExtractorConfig::default())?;
+    // `fp32` or `int8` among the arguments picks the network (default int8).
+    let precision = std::env::args()
+        .skip(1)
+        .find_map(|a| a.parse::<Precision>().ok())
+        .unwrap_or_default();
+    println!("precision {precision}");
+    let mut extractor = SuperPointExtractor::new(ExtractorConfig {
+        precision,
+        ..ExtractorConfig::default()
+    })?;
     let mut d = Distributions::default();
     let mut rng = 0x2545_f491_4f6c_dd1du64;
     for &f in &frames {

@@ -244,8 +244,10 @@ typedef struct SpslamConfig {
   struct SpslamPeriodicFilter periodic_filter;
   /**
    * NUL-terminated path of the SuperPoint ONNX model; NULL or "" means the
-   * default: `$SPSLAM_MODEL`, else `models/superpoint.onnx` in the crate
-   * directory the library was built from.
+   * precision's default: `$SPSLAM_MODEL` (fp32) or `$SPSLAM_MODEL_INT8`
+   * (int8), else `models/superpoint.onnx` or `models/superpoint_int8.onnx`
+   * in the crate directory the library was built from. A model given here
+   * is used whatever `precision` says.
    */
   const char *model_path;
   /**

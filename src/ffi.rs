@@ -128,8 +128,10 @@ pub struct SpslamConfig {
     /// The periodic-artefact filter.
     pub periodic_filter: SpslamPeriodicFilter,
     /// NUL-terminated path of the SuperPoint ONNX model; NULL or "" means the
-    /// default: `$SPSLAM_MODEL`, else `models/superpoint.onnx` in the crate
-    /// directory the library was built from.
+    /// precision's default: `$SPSLAM_MODEL` (fp32) or `$SPSLAM_MODEL_INT8`
+    /// (int8), else `models/superpoint.onnx` or `models/superpoint_int8.onnx`
+    /// in the crate directory the library was built from. A model given here
+    /// is used whatever `precision` says.
     pub model_path: *const c_char,
     /// NUL-terminated path of `libonnxruntime.so`; NULL or "" means the
     /// default search: `$ORT_DYLIB_PATH`, else `.deps/onnxruntime/` in the
@@ -337,6 +339,13 @@ fn anms_from_c(anms: i32) -> Result<AnmsMethod, FfiError> {
     }
 }
 
+fn precision_to_c(precision: Precision) -> i32 {
+    match precision {
+        Precision::Fp32 => SpslamPrecision::Fp32 as i32,
+        Precision::Int8 => SpslamPrecision::Int8 as i32,
+    }
+}
+
 fn precision_from_c(value: i32) -> Result<Precision, FfiError> {
     match value {
         x if x == SpslamPrecision::Fp32 as i32 => Ok(Precision::Fp32),
@@ -395,10 +404,7 @@ fn config_to_c(config: &ExtractorConfig) -> Result<SpslamConfig, FfiError> {
         model_path: std::ptr::null(),
         ort_library_path: std::ptr::null(),
         threads: to_u32("threads", config.threads)?,
-        precision: match config.precision {
-            Precision::Fp32 => SpslamPrecision::Fp32 as i32,
-            Precision::Int8 => SpslamPrecision::Int8 as i32,
-        },
+        precision: precision_to_c(config.precision),
         device: device_to_c(config.device),
     })
 }

@@ -100,6 +100,7 @@ Result RunCApi(const Params& p, const cv::Mat& image)
     CHECK(spslam_config_from_orb_slam3(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST, &config) ==
               SPSLAM_STATUS_OK, "%s", LastError().c_str());
     config.threads = ThreadsFromEnv();
+    config.precision = SPSLAM_PRECISION_FP32; // the shim's default
     SpslamExtractor* extractor = nullptr;
     if (spslam_extractor_create(&config, &extractor) != SPSLAM_STATUS_OK)
     {
@@ -452,11 +453,16 @@ void TestInvalidConstruction(const Params& p, const cv::Mat& gray)
         unsetenv("SPSLAM_PRECISION");
     else
         setenv("SPSLAM_PRECISION", keepPrecision.c_str(), 1);
+    const char* oldDevice = std::getenv("SPSLAM_DEVICE");
+    const std::string keepDevice = oldDevice ? oldDevice : "";
     setenv("SPSLAM_DEVICE", "tpu", 1);
     ORB_SLAM3::ORBextractor badDevice(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST);
     CHECK(!badDevice.IsValid() && badDevice.GetLastError().find("auto, cpu or cuda") != std::string::npos,
           "SPSLAM_DEVICE=tpu: %s", badDevice.GetLastError().c_str());
-    unsetenv("SPSLAM_DEVICE");
+    if (keepDevice.empty())
+        unsetenv("SPSLAM_DEVICE");
+    else
+        setenv("SPSLAM_DEVICE", keepDevice.c_str(), 1);
     std::printf("invalid construction: logged, IsValid() false, operator() -> -1\n");
 }
 

@@ -13,8 +13,8 @@ use super::orientation::{CircularPatch, PATCH_SIZE};
 use super::periodic::{reject_low_contrast, LatticeMask};
 use super::pyramid::{build_pyramid, ScaleTables};
 use super::{
-    ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint, PeriodicFilterConfig,
-    StageTimings,
+    Device, ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint, PeriodicFilterConfig,
+    Precision, StageTimings,
 };
 
 /// What the periodic-artefact filter did on one extraction (for diagnostics).
@@ -60,11 +60,21 @@ impl SuperPointExtractor {
     /// Validates the config, loads ONNX Runtime and the model.
     pub fn new(config: ExtractorConfig) -> Result<Self, FeatureError> {
         config.validate()?;
+        // The int8 model's QDQ graph is made for the CPU: `auto` keeps it there.
+        let device = match (config.device, config.precision) {
+            (Device::Auto, Precision::Int8) => {
+                tracing::debug!(
+                    "device auto with the int8 model runs on the CPU; choose --precision fp32 for CUDA"
+                );
+                Device::Cpu
+            }
+            (device, _) => device,
+        };
         let model = SuperPointModel::load(
             &config.resolved_model_path(),
             config.ort_library_path.as_deref(),
             config.threads,
-            config.device,
+            device,
         )?;
         let tables = ScaleTables::new(config.n_features, config.scale_factor, config.n_levels);
         Ok(Self {

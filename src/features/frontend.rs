@@ -51,8 +51,8 @@ pub trait FeatureExtractor: Send {
     /// A short name for logs and reports, e.g. `superpoint+kdtree` or `orb`.
     fn name(&self) -> &str;
     /// How it runs, for reports: e.g. `int8 on cpu, 2 levels`.
-    fn inference(&self) -> String {
-        format!("cpu, {} levels", self.scale_tables().n_levels())
+    fn inference_summary(&self) -> String {
+        format!("{} levels", self.scale_tables().n_levels())
     }
 }
 
@@ -73,10 +73,14 @@ impl FeatureExtractor for SuperPointExtractor {
         }
     }
 
-    fn inference(&self) -> String {
+    fn inference_summary(&self) -> String {
+        // A model given by path is used whatever the precision says: name it.
+        let network = match &self.config().model_path {
+            Some(path) => format!("model {}", path.display()),
+            None => self.config().precision.to_string(),
+        };
         format!(
-            "{} on {}, {} levels",
-            self.config().precision,
+            "{network} on {}, {} levels",
             self.device(),
             self.scale_tables().n_levels()
         )

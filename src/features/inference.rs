@@ -59,8 +59,8 @@ impl std::str::FromStr for Precision {
     type Err = FeatureError;
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s.to_ascii_lowercase().as_str() {
-            "fp32" | "float32" | "float" => Ok(Precision::Fp32),
-            "int8" | "u8" => Ok(Precision::Int8),
+            "fp32" => Ok(Precision::Fp32),
+            "int8" => Ok(Precision::Int8),
             _ => Err(FeatureError::InvalidConfig {
                 name: "precision",
                 value: s.to_string(),
@@ -112,7 +112,7 @@ impl std::str::FromStr for Device {
         match s.to_ascii_lowercase().as_str() {
             "auto" => Ok(Device::Auto),
             "cpu" => Ok(Device::Cpu),
-            "cuda" | "gpu" => Ok(Device::Cuda),
+            "cuda" => Ok(Device::Cuda),
             _ => Err(FeatureError::InvalidConfig {
                 name: "device",
                 value: s.to_string(),

@@ -58,32 +58,27 @@ impl SuperPointModel {
             });
         }
         let environment = super::runtime::environment(ort_library)?;
-        let (session, device) = match device {
-            Device::Cpu => (
-                open_session(&environment, path, threads, false)?,
-                Device::Cpu,
-            ),
-            Device::Cuda => (
-                open_session(&environment, path, threads, true)?,
-                Device::Cuda,
-            ),
-            Device::Auto if cuda_offered() => {
-                match open_session(&environment, path, threads, true) {
-                    Ok(session) => (session, Device::Cuda),
-                    Err(e) => {
-                        tracing::info!("CUDA is offered but unusable ({e}); running on the CPU");
-                        (
-                            open_session(&environment, path, threads, false)?,
-                            Device::Cpu,
-                        )
-                    }
-                }
-            }
-            Device::Auto => (
-                open_session(&environment, path, threads, false)?,
-                Device::Cpu,
-            ),
+        let load_on = |device: Device| {
+            let session = open_session(&environment, path, threads, device)?;
+            Self::checked(session, path, device)
         };
+        match device {
+            Device::Auto if cuda_offered() => load_on(Device::Cuda).or_else(|e| {
+                tracing::info!("CUDA is offered but unusable ({e}); running on the CPU");
+                load_on(Device::Cpu)
+            }),
+            Device::Auto | Device::Cpu => load_on(Device::Cpu),
+            Device::Cuda => load_on(Device::Cuda).map_err(|e| match e {
+                // The probe inference failing on the GPU is the GPU's fault.
+                FeatureError::Runtime(reason) => cuda_unavailable(reason),
+                other => other,
+            }),
+        }
+    }
+
+    /// Checks a session's interface with one small inference; the
+    /// descriptor length is read from that output.
+    fn checked(session: Session, path: &Path, device: Device) -> Result<Self, FeatureError> {
         let interface_err = |reason: String| FeatureError::ModelInterface {
             path: path.to_path_buf(),
             reason,
@@ -202,9 +197,10 @@ impl SuperPointModel {
 }
 
 /// Whether the loaded ONNX Runtime library was built with the CUDA execution
-/// provider (the GPU wheel's library is; the default CPU one is not).
+/// provider (the GPU wheel's library is; the default CPU one is not); false
+/// while no library is loaded.
 pub fn cuda_offered() -> bool {
-    ort::ep::CUDA::is_available().unwrap_or(false)
+    super::runtime::is_loaded() && ort::ep::CUDA::is_available().unwrap_or(false)
 }
 
 fn cuda_unavailable(reason: String) -> FeatureError {
@@ -219,14 +215,15 @@ fn cuda_unavailable(reason: String) -> FeatureError {
     }
 }
 
-/// Creates a session for `path`, on CUDA when `cuda`: a CUDA provider that
-/// cannot be registered is [`FeatureError::DeviceUnavailable`], not ONNX
-/// Runtime's silent CPU fallback.
+/// Creates a session for `path` on `device` (`Cpu` or `Cuda`). On CUDA,
+/// ONNX Runtime's silent CPU fallback is turned off, and a failure is
+/// [`FeatureError::DeviceUnavailable`] unless the model does not load on the
+/// CPU either (then it is the model's error).
 fn open_session(
     environment: &ort::environment::Environment,
     path: &Path,
     threads: usize,
-    cuda: bool,
+    device: Device,
 ) -> Result<Session, FeatureError> {
     let runtime_err =
         |e: ort::Error<ort::session::builder::SessionBuilder>| FeatureError::Runtime(e.to_string());
@@ -236,17 +233,23 @@ fn open_session(
     if threads > 0 {
         builder = builder.with_intra_threads(threads).map_err(runtime_err)?;
     }
+    let cuda = device == Device::Cuda;
     if cuda {
         builder = builder
             .with_execution_providers([ort::ep::CUDA::default().build().error_on_failure()])
             .map_err(|e| cuda_unavailable(e.to_string()))?;
     }
-    builder
-        .commit_from_file(path)
-        .map_err(|e| FeatureError::ModelInterface {
+    match builder.commit_from_file(path) {
+        Ok(session) => Ok(session),
+        Err(e) if cuda => match open_session(environment, path, threads, Device::Cpu) {
+            Ok(_) => Err(cuda_unavailable(e.to_string())),
+            Err(cpu_error) => Err(cpu_error),
+        },
+        Err(e) => Err(FeatureError::ModelInterface {
             path: path.to_path_buf(),
             reason: format!("ONNX Runtime cannot load it: {e}"),
-        })
+        }),
+    }
 }
 
 /// Copies the image into `buffer` as floats in [0, 1], padded by edge

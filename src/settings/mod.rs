@@ -65,9 +65,9 @@ impl CameraSettings {
 /// SuperPoint's pyramid levels in `spslam run` when the settings do not say
 /// (`SuperPoint.nLevels`). Chosen by measurement (EVALUATION.md, "Pyramid
 /// levels"), for speed: one level is the only setting that keeps a KITTI
-/// stereo frame near 0.5 s on a 2-core CPU (8 levels cost 3.3× one). Its
-/// price: on the KITTI excerpt the fp32 ATE is 0.081 m on one level and
-/// 0.058 m on eight (the drift stays 1.0 %), and the synthetic highway
+/// stereo frame near 0.25 s on a 2-core CPU (8 levels cost 2.7–3.3× one).
+/// Its price: on the KITTI excerpt the ATE is 0.084 m with int8 on one
+/// level against 0.058 m with fp32 on eight (the drift stays 1.0 %), and the synthetic highway
 /// drifts 0.93 % on one int8 level against 0.55 % on eight (fp32: 0.88 %
 /// and 0.36 %). Set `SuperPoint.nLevels: 8` (or
 /// `--levels 8`) for ORB-SLAM3's pyramid.

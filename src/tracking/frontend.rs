@@ -95,7 +95,9 @@ pub struct StereoMatcher {
     name: String,
 }
 
-/// The two extractors and the stereo matcher.
+/// The two extractors and the stereo matcher, built together from one
+/// extractor pair and a rig; [`StereoSlam`](crate::system::StereoSlam)
+/// keeps them apart ([`Self::into_parts`]).
 pub struct StereoFrontend {
     extractors: StereoExtractors,
     matcher: StereoMatcher,
@@ -137,34 +139,6 @@ impl StereoFrontend {
     /// The extractors and the matcher, apart.
     pub fn into_parts(self) -> (StereoExtractors, StereoMatcher) {
         (self.extractors, self.matcher)
-    }
-
-    /// The extractor's name, for reports.
-    pub fn extractor_name(&self) -> &str {
-        self.extractors.name()
-    }
-
-    /// Extracts the left and right images' features in parallel.
-    pub fn extract(
-        &mut self,
-        index: usize,
-        left_image: GrayImageView<'_>,
-        right_image: GrayImageView<'_>,
-    ) -> Result<StereoFeatures, SlamError> {
-        self.extractors.extract(index, left_image, right_image)
-    }
-
-    /// See [`StereoMatcher::match_frame`].
-    pub fn match_frame(
-        &self,
-        index: usize,
-        timestamp: f64,
-        features: StereoFeatures,
-        images: (GrayImageView<'_>, GrayImageView<'_>),
-        rig: &StereoRig,
-    ) -> Result<(Frame, f64), SlamError> {
-        self.matcher
-            .match_frame(index, timestamp, features, images, rig)
     }
 }
 

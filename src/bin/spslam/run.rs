@@ -180,7 +180,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         ExtractorChoice::Orb => settings.extractor.n_levels,
     });
     let (left, right) = extractors(args.extractor, &settings, levels)?;
-    let inference = left.inference();
+    let inference = left.inference_summary();
     let frontend = StereoFrontend::new(left, right, &rig);
     let mut slam = StereoSlam::new(rig, frontend);
     if let Some(mapper) = slam.mapper_mut() {

@@ -120,6 +120,10 @@ impl FrameLoop<'_> {
                     }
                 }
             };
+            // A signal that came while waiting for the frame stops before it.
+            if let Some(signal) = self.stop.requested() {
+                return RunEnd::Interrupted { signal };
+            }
             match self.step(slam, index, frame, next.result) {
                 Ok(()) => {}
                 Err(FrameError::Unreadable(e)) if self.strict => {
@@ -160,9 +164,7 @@ impl FrameLoop<'_> {
         let prepared = prepared.map_err(|e| match e {
             PrepareError::Unreadable(e) => FrameError::Unreadable(e),
             PrepareError::Extraction(e) => classify(e, frame),
-            PrepareError::Panicked(message) => {
-                FrameError::Fatal(format!("the extraction stage panicked: {message}"))
-            }
+            e @ PrepareError::Panicked { .. } => FrameError::Fatal(e.to_string()),
         })?;
         // A panic in the system (a bug) ends the run like a fatal error,
         // so that the frames before it are still written.

@@ -28,7 +28,8 @@ pub struct RunOutputs<'a> {
     pub frames_total: usize,
     /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
     pub inference: &'a str,
-    /// Wall time of the frame loop (extraction pipelined with tracking), s.
+    /// Wall time of the frame loop (extraction pipelined with tracking)
+    /// and of local mapping's last keyframes, s.
     pub wall_seconds: f64,
 }
 
@@ -39,7 +40,7 @@ struct RunReport<'a> {
     extractor: &'a str,
     /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
     inference: &'a str,
-    /// Wall time of the frame loop, s.
+    /// Wall time of the frame loop and local mapping's finish, s.
     wall_seconds: f64,
     /// Wall time per processed frame, ms (the figure to compare runs by).
     wall_ms_per_frame: f64,

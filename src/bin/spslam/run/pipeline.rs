@@ -39,13 +39,20 @@ pub struct PreparedFrame {
 }
 
 /// Why a frame could not be prepared.
+#[derive(Debug, thiserror::Error)]
 pub enum PrepareError {
     /// An image could not be read.
+    #[error("{0}")]
     Unreadable(Unreadable),
     /// The extractor rejected the pair.
+    #[error("{0}")]
     Extraction(SlamError),
     /// The extraction stage panicked (a bug).
-    Panicked(String),
+    #[error("the extraction stage panicked: {message}")]
+    Panicked {
+        /// The panic's message.
+        message: String,
+    },
 }
 
 /// One item of the queue: frame `index` and how its preparation went.
@@ -87,8 +94,12 @@ fn prepare_all(
         let result = catch_unwind(AssertUnwindSafe(|| {
             prepare(source, frame, size, index, &mut extractors)
         }))
-        .unwrap_or_else(|payload| Err(PrepareError::Panicked(panic_text(payload.as_ref()))));
-        let panicked = matches!(result, Err(PrepareError::Panicked(_)));
+        .unwrap_or_else(|payload| {
+            Err(PrepareError::Panicked {
+                message: panic_text(payload.as_ref()),
+            })
+        });
+        let panicked = matches!(result, Err(PrepareError::Panicked { .. }));
         if sender.send(Prepared { index, result }).is_err() || panicked {
             return; // the consumer stopped, or the extractors are unusable
         }
