@@ -39,8 +39,8 @@ rust-release: build
 # The main job: synthesise one lap of the city-block loop (232 stereo
 # frames, 640x480, exact ground truth), run stereo SLAM with SuperPoint +
 # ANMS on it, print the ATE and write the trajectory plot. SuperPoint runs on
-# one pyramid level here (as in EVALUATION.md's synthetic rows): about four
-# minutes on a 2-core machine.
+# one pyramid level here (the default, int8 network): about a minute and a
+# half on a 2-core machine.
 DEMO_SEQ := $(OUT)/demo_loop
 demo: build
 	@mkdir -p $(OUT)
