@@ -12,6 +12,7 @@ pub mod frontend;
 mod image;
 mod inference;
 mod keypoint;
+pub mod sign_bits;
 pub mod model;
 pub mod nms;
 pub mod orb;
