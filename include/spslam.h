@@ -324,6 +324,27 @@ typedef struct SpslamFeaturesView {
   const float *descriptors;
 } SpslamFeaturesView;
 
+/**
+ * Borrowed view of the binary form of a [`SpslamFeatures`]' descriptors
+ * ([`spslam_features_binary_view`]), valid until it is destroyed.
+ */
+typedef struct SpslamBinaryView {
+  /**
+   * Number of keypoints.
+   */
+  size_t count;
+  /**
+   * Bytes per row: `ceil(descriptor_len / 8)`, 32 for SuperPoint.
+   */
+  size_t bytes_per_row;
+  /**
+   * `count × bytes_per_row` bytes, row-major: bit j (least significant
+   * first) of byte i of row k is set when dimension 8·i + j of keypoint
+   * k's float descriptor is positive, ORB's layout (NULL when `count` is 0).
+   */
+  const uint8_t *data;
+} SpslamBinaryView;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
@@ -419,6 +440,20 @@ SpslamStatus spslam_extract(struct SpslamExtractor *extractor,
  */
 SpslamStatus spslam_features_view(const struct SpslamFeatures *features,
                                   struct SpslamFeaturesView *out);
+
+/**
+ * Fills `*out` with a view of the descriptors' sign bits, packed as ORB
+ * packs its 256 comparisons (see [`SpslamBinaryView`]): the binary mode, in
+ * which an unmodified ORB-SLAM3 matcher and DBoW2 vocabulary (trained on
+ * these bits) can be used. The pointer stays valid until `features` is
+ * destroyed.
+ *
+ * # Safety
+ * `features` is NULL or a live result of [`spslam_extract`]; `out` is NULL
+ * or valid for writing one `SpslamBinaryView`.
+ */
+SpslamStatus spslam_features_binary_view(const struct SpslamFeatures *features,
+                                         struct SpslamBinaryView *out);
 
 /**
  * Writes the number of keypoints in `features` to `*count`.

@@ -179,6 +179,21 @@ pub struct SpslamFeaturesView {
     pub descriptors: *const f32,
 }
 
+/// Borrowed view of the binary form of a [`SpslamFeatures`]' descriptors
+/// ([`spslam_features_binary_view`]), valid until it is destroyed.
+#[repr(C)]
+#[derive(Clone, Copy, Debug)]
+pub struct SpslamBinaryView {
+    /// Number of keypoints.
+    pub count: usize,
+    /// Bytes per row: `ceil(descriptor_len / 8)`, 32 for SuperPoint.
+    pub bytes_per_row: usize,
+    /// `count × bytes_per_row` bytes, row-major: bit j (least significant
+    /// first) of byte i of row k is set when dimension 8·i + j of keypoint
+    /// k's float descriptor is positive, ORB's layout (NULL when `count` is 0).
+    pub data: *const u8,
+}
+
 /// An extractor (opaque). Create with [`spslam_extractor_create`], free with
 /// [`spslam_extractor_destroy`]. Not for concurrent use from several threads;
 /// one handle per thread.
@@ -193,6 +208,7 @@ pub struct SpslamFeatures {
     keypoints: Vec<SpslamKeypoint>,
     descriptors: Vec<f32>,
     descriptor_len: usize,
+    sign_bits: Vec<u8>,
 }
 
 // Handles move between threads (ORB-SLAM3 creates extractors on one thread and
@@ -711,10 +727,17 @@ fn into_c_features(features: Features) -> SpslamFeatures {
         .iter()
         .map(SpslamKeypoint::from)
         .collect();
+    let mut sign_bits = Vec::new();
+    crate::features::sign_bits::pack_sign_bits(
+        &features.descriptors,
+        features.descriptor_len,
+        &mut sign_bits,
+    );
     SpslamFeatures {
         keypoints,
         descriptors: features.descriptors,
         descriptor_len: features.descriptor_len,
+        sign_bits,
     }
 }
 
@@ -745,6 +768,38 @@ pub unsafe extern "C" fn spslam_features_view(
                 std::ptr::null()
             } else {
                 f.descriptors.as_ptr()
+            },
+        };
+        // SAFETY: forwarded caller contract on `out`.
+        unsafe { write_out(out, "out", view) }
+    })
+}
+
+/// Fills `*out` with a view of the descriptors' sign bits, packed as ORB
+/// packs its 256 comparisons (see [`SpslamBinaryView`]): the binary mode, in
+/// which an unmodified ORB-SLAM3 matcher and DBoW2 vocabulary (trained on
+/// these bits) can be used. The pointer stays valid until `features` is
+/// destroyed.
+///
+/// # Safety
+/// `features` is NULL or a live result of [`spslam_extract`]; `out` is NULL
+/// or valid for writing one `SpslamBinaryView`.
+#[no_mangle]
+pub unsafe extern "C" fn spslam_features_binary_view(
+    features: *const SpslamFeatures,
+    out: *mut SpslamBinaryView,
+) -> SpslamStatus {
+    ffi_call("spslam_features_binary_view", || {
+        // SAFETY: NULL or a live result by the caller's contract.
+        let f = unsafe { features.as_ref() }.ok_or_else(|| FfiError::null("features"))?;
+        let count = f.keypoints.len();
+        let view = SpslamBinaryView {
+            count,
+            bytes_per_row: f.descriptor_len.div_ceil(8),
+            data: if count == 0 {
+                std::ptr::null()
+            } else {
+                f.sign_bits.as_ptr()
             },
         };
         // SAFETY: forwarded caller contract on `out`.
@@ -937,6 +992,11 @@ mod tests {
         let status = unsafe { spslam_config_default(std::ptr::null_mut()) };
         assert_eq!(status, SpslamStatus::NullPointer);
         assert!(last_error().contains("out"), "{}", last_error());
+        let mut binary = std::mem::MaybeUninit::<SpslamBinaryView>::uninit();
+        // SAFETY: NULL features are handled; `binary` is writable.
+        let status = unsafe { spslam_features_binary_view(std::ptr::null(), binary.as_mut_ptr()) };
+        assert_eq!(status, SpslamStatus::NullPointer);
+        assert!(last_error().contains("features"), "{}", last_error());
         let mut c = std::mem::MaybeUninit::<SpslamConfig>::uninit();
         // SAFETY: `c` is writable.
         let status = unsafe { spslam_config_from_orb_slam3(-5, 1.2, 8, 20, 7, c.as_mut_ptr()) };

@@ -114,6 +114,35 @@ impl Handle {
                 .collect();
             features.descriptors = descriptors.to_vec();
         }
+        // The binary view: the float rows' sign bits in ORB's layout,
+        // checked against a bit-by-bit reference.
+        let mut binary = std::mem::MaybeUninit::<SpslamBinaryView>::uninit();
+        // SAFETY: `out` is a live result; `binary` is writable.
+        let status = unsafe { spslam_features_binary_view(out, binary.as_mut_ptr()) };
+        assert_eq!(status, SpslamStatus::Ok, "{}", last_error());
+        // SAFETY: initialised by the successful call.
+        let binary = unsafe { binary.assume_init() };
+        assert_eq!(
+            (binary.count, binary.bytes_per_row),
+            (view.count, view.descriptor_len.div_ceil(8))
+        );
+        if binary.count > 0 {
+            // SAFETY: `count * bytes_per_row` bytes while `out` lives.
+            let bits = unsafe {
+                std::slice::from_raw_parts(binary.data, binary.count * binary.bytes_per_row)
+            };
+            let d = view.descriptor_len;
+            for (k, row) in features.descriptors.chunks_exact(d).enumerate() {
+                for (dim, &value) in row.iter().enumerate() {
+                    let byte = bits[k * binary.bytes_per_row + dim / 8];
+                    assert_eq!(
+                        byte >> (dim % 8) & 1 == 1,
+                        value > 0.0,
+                        "keypoint {k}, dimension {dim}"
+                    );
+                }
+            }
+        }
         // SAFETY: `out` came from `spslam_extract` and is destroyed once.
         unsafe { spslam_features_destroy(out) };
         features

@@ -12,7 +12,6 @@ pub mod frontend;
 mod image;
 mod inference;
 mod keypoint;
-pub mod sign_bits;
 pub mod model;
 pub mod nms;
 pub mod orb;
@@ -20,6 +19,7 @@ pub mod orientation;
 pub mod periodic;
 pub mod pyramid;
 pub mod runtime;
+pub mod sign_bits;
 
 pub use config::{default_model_path, AnmsMethod, ExtractorConfig, PeriodicFilterConfig};
 pub use descriptor_set::{DescriptorKind, DescriptorRef, DescriptorSet};
