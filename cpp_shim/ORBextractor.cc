@@ -65,7 +65,8 @@ void ORBextractor::Fail(const std::string& message)
 ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
          int _iniThFAST, int _minThFAST):
     nfeatures(_nfeatures), scaleFactor(_scaleFactor), nlevels(_nlevels),
-    iniThFAST(_iniThFAST), minThFAST(_minThFAST), mpExtractor(nullptr), mnDescriptorLength(0)
+    iniThFAST(_iniThFAST), minThFAST(_minThFAST), mpExtractor(nullptr), mnDescriptorLength(0),
+    mbBinaryDescriptors(false)
 {
     // The tables as ORB-SLAM3's constructor computes them; they are replaced
     // by the library's below (identical by construction, checked by the tests).
@@ -155,6 +156,14 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
     else if (!precision.empty())
     {
         Fail("SPSLAM_PRECISION=" + precision + " is not a precision: use fp32 or int8");
+        return;
+    }
+    const std::string descriptors = Lowercase(EnvOrEmpty("SPSLAM_DESCRIPTORS"));
+    if (descriptors == "binary")
+        mbBinaryDescriptors = true;
+    else if (!descriptors.empty() && descriptors != "float")
+    {
+        Fail("SPSLAM_DESCRIPTORS=" + descriptors + " is not a descriptor mode: use float or binary");
         return;
     }
     const std::string device = Lowercase(EnvOrEmpty("SPSLAM_DEVICE"));
@@ -286,16 +295,29 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
         _descriptors.release();
         return -1;
     }
+    SpslamBinaryView binary = {0, 0, nullptr};
+    if (mbBinaryDescriptors && spslam_features_binary_view(features, &binary) != SPSLAM_STATUS_OK)
+    {
+        Fail(LastSpslamError());
+        spslam_features_destroy(features);
+        _keypoints.clear();
+        _descriptors.release();
+        return -1;
+    }
     mLastError.clear();
 
     const int nkeypoints = static_cast<int>(view.count);
     const int D = static_cast<int>(view.descriptor_len);
+    const int rowBytes = static_cast<int>(binary.bytes_per_row);
     cv::Mat descriptors;
     if( nkeypoints == 0 )
         _descriptors.release();
     else
     {
-        _descriptors.create(nkeypoints, D, CV_32F);
+        if (mbBinaryDescriptors)
+            _descriptors.create(nkeypoints, rowBytes, CV_8U);
+        else
+            _descriptors.create(nkeypoints, D, CV_32F);
         descriptors = _descriptors.getMat();
     }
 
@@ -318,7 +340,11 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
         else
             index = monoIndex++;
         _keypoints[index] = keypoint;
-        std::memcpy(descriptors.ptr<float>(index), row, sizeof(float) * static_cast<size_t>(D));
+        if (mbBinaryDescriptors)
+            std::memcpy(descriptors.ptr<uchar>(index), binary.data + static_cast<size_t>(i) * binary.bytes_per_row,
+                        static_cast<size_t>(rowBytes));
+        else
+            std::memcpy(descriptors.ptr<float>(index), row, sizeof(float) * static_cast<size_t>(D));
     }
     spslam_features_destroy(features);
     return monoIndex;

@@ -28,6 +28,8 @@
  *  - SPSLAM_PRECISION (optional): fp32 (the shim's default: ORB-SLAM3 runs
  *    nLevels, usually 8, where the int8 model loses accuracy) or int8
  *    (about 3x faster);
+ *  - SPSLAM_DESCRIPTORS (optional): float (default: N x 256 CV_32F rows) or
+ *    binary (N x 32 CV_8U rows: each float's sign bit, ORB's layout);
  *  - SPSLAM_DEVICE (optional): auto (default: CUDA when the loaded ONNX
  *    Runtime library offers it, else the CPU), cpu or cuda (the constructor
  *    fails, IsValid() false, when CUDA cannot be used).
@@ -124,6 +126,11 @@ public:
     // Floats per descriptor (256), or 0 when the extractor is not valid.
     int GetDescriptorLength() const { return mnDescriptorLength; }
 
+    // True in binary mode (SPSLAM_DESCRIPTORS=binary): operator() returns the
+    // descriptors' sign bits as an N x 32 CV_8U matrix in ORB's layout, so
+    // that ORB-SLAM3's own matcher and a vocabulary trained on these bits work.
+    bool BinaryDescriptors() const { return mbBinaryDescriptors; }
+
 protected:
 
     void ComputePyramid(cv::Mat image);
@@ -150,6 +157,7 @@ private:
 
     SpslamExtractor* mpExtractor;
     int mnDescriptorLength;
+    bool mbBinaryDescriptors;
     std::string mLastError;
 };
 

@@ -417,6 +417,36 @@ void TestCApiErrors(const Params& p)
                 spslam_version());
 }
 
+// SPSLAM_DESCRIPTORS=binary: the same keypoints as the float run, and each
+// row's 32 bytes hold the float row's sign bits in ORB's layout (bit j of
+// byte i = dimension 8i+j > 0), checked bit by bit.
+void TestBinaryMode(const Params& p, const cv::Mat& image, const Result& plain)
+{
+    setenv("SPSLAM_DESCRIPTORS", "binary", 1);
+    ORB_SLAM3::ORBextractor binary(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST);
+    setenv("SPSLAM_DESCRIPTORS", "hamming", 1);
+    ORB_SLAM3::ORBextractor bad(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST);
+    unsetenv("SPSLAM_DESCRIPTORS");
+    CHECK(!bad.IsValid() && bad.GetLastError().find("float or binary") != std::string::npos,
+          "SPSLAM_DESCRIPTORS=hamming: %s", bad.GetLastError().c_str());
+    CHECK(binary.IsValid() && binary.BinaryDescriptors(), "binary mode: %s", binary.GetLastError().c_str());
+    const Result r = RunShim(binary, image, {0, 0});
+    CHECK(r.descriptors.type() == CV_8U && r.descriptors.cols == 32, "binary descriptors: type %d, %d columns",
+          r.descriptors.type(), r.descriptors.cols);
+    CHECK(r.keypoints.size() == plain.keypoints.size(), "binary mode: %zu keypoints, float %zu", r.keypoints.size(),
+          plain.keypoints.size());
+    int wrong = 0;
+    for (int k = 0; k < r.descriptors.rows && k < plain.descriptors.rows; ++k)
+        for (int d = 0; d < plain.descriptors.cols; ++d)
+        {
+            const bool bit = (r.descriptors.at<uchar>(k, d / 8) >> (d % 8)) & 1;
+            wrong += bit != (plain.descriptors.at<float>(k, d) > 0.f);
+        }
+    CHECK(wrong == 0, "binary mode: %d sign bits differ from the float rows", wrong);
+    std::printf("binary mode: %d x %d CV_8U, every bit the float row's sign\n", r.descriptors.rows,
+                r.descriptors.cols);
+}
+
 void TestInvalidConstruction(const Params& p, const cv::Mat& gray)
 {
     ORB_SLAM3::ORBextractor::SetRuntimePaths("/nonexistent/superpoint.onnx", "");
@@ -544,6 +574,7 @@ int main(int argc, char** argv)
     TestParallel(p, extractor, left, right, plain, rightPlain);
     TestBadImages(p, extractor, left, plain);
     TestCApiErrors(p);
+    TestBinaryMode(p, left, plain);
     TestInvalidConstruction(p, left);
 
     if (gFailures)
