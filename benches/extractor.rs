@@ -19,7 +19,12 @@
 //! `default_model_path()`. Without them the benchmarks are skipped with a
 //! message. Run: `cargo bench --bench extractor -- --warm-up-time 1 --measurement-time 5`.
 
-use std::path::{Path, PathBuf};
+#[path = "common/frames.rs"]
+mod frames;
+
+use std::path::Path;
+
+use frames::{data_dir, frames};
 use std::time::Duration;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, SamplingMode};
@@ -44,30 +49,6 @@ const THRESHOLD: f32 = 0.005;
 const MIN_THRESHOLD: f32 = 0.00175;
 const NMS_RADIUS: usize = 4;
 const BORDER: usize = 8;
-
-fn data_dir() -> PathBuf {
-    std::env::var_os("SPSLAM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"))
-}
-
-/// The benchmark frames: (group name, path); `None` when a frame is missing.
-fn frames(data: &Path) -> Vec<(&'static str, Option<PathBuf>)> {
-    let kitti = data.join("kitti/sequences/06/image_0/000000.png");
-    let euroc_dir = data.join("euroc/V1_01_easy_first95/mav0/cam0/data");
-    let euroc = std::fs::read_dir(&euroc_dir).ok().and_then(|d| {
-        let mut pngs: Vec<PathBuf> = d
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "png"))
-            .collect();
-        pngs.sort();
-        pngs.into_iter().next()
-    });
-    vec![
-        ("kitti_1226x370", kitti.is_file().then_some(kitti)),
-        ("euroc_752x480", euroc),
-    ]
-}
 
 fn padded_input(image: GrayImageView<'_>) -> Array4<f32> {
     let mut buffer = Vec::new();

@@ -14,7 +14,11 @@
 //! `Precision::default_model_path()`. Without them the benchmarks are
 //! skipped with a message. Run: `cargo bench --bench precision`.
 
-use std::path::{Path, PathBuf};
+#[path = "common/frames.rs"]
+mod frames;
+
+use std::path::PathBuf;
+
 use std::time::Duration;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
@@ -23,23 +27,6 @@ use spslam::features::model::{fill_padded_input, SuperPointModel};
 use spslam::features::{Device, ExtractorConfig, GrayImage, Precision, SuperPointExtractor};
 
 const THREADS: usize = 2;
-
-fn data_dir() -> PathBuf {
-    std::env::var_os("SPSLAM_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data"))
-}
-
-fn euroc_frame(data: &Path) -> Option<PathBuf> {
-    let dir = data.join("euroc/V1_01_easy_first95/mav0/cam0/data");
-    let mut pngs: Vec<PathBuf> = std::fs::read_dir(dir)
-        .ok()?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|e| e == "png"))
-        .collect();
-    pngs.sort();
-    pngs.into_iter().next()
-}
 
 fn extractor(precision: Precision, threads: usize) -> SuperPointExtractor {
     SuperPointExtractor::new(ExtractorConfig {
@@ -108,11 +95,16 @@ fn benches(c: &mut Criterion) {
         eprintln!("precision bench: models missing ({missing:?}); run `make setup`; skipping");
         return;
     }
-    let data = data_dir();
-    let kitti = data.join("kitti/sequences/06/image_0/000000.png");
+    let data = frames::data_dir();
+    let mut named = frames::frames(&data).into_iter();
+    let kitti = named.next().and_then(|(_, p)| p);
+    let euroc = named.next().and_then(|(_, p)| p);
     let kitti_right = data.join("kitti/sequences/06/image_1/000000.png");
-    match (GrayImage::load(&kitti), GrayImage::load(&kitti_right)) {
-        (Ok(left), Ok(right)) => {
+    match (
+        kitti.map(|p| GrayImage::load(&p)),
+        GrayImage::load(&kitti_right),
+    ) {
+        (Some(Ok(left)), Ok(right)) => {
             bench_size(c, "kitti_1226x370", &left);
             bench_stereo(c, &left, &right);
         }
@@ -121,7 +113,7 @@ fn benches(c: &mut Criterion) {
             data.display()
         ),
     }
-    match euroc_frame(&data).map(|p| GrayImage::load(&p)) {
+    match euroc.map(|p| GrayImage::load(&p)) {
         Some(Ok(image)) => bench_size(c, "euroc_752x480", &image),
         _ => eprintln!(
             "precision bench: no EuRoC frame under {}; skipping it",

@@ -208,7 +208,9 @@ pub struct SpslamFeatures {
     keypoints: Vec<SpslamKeypoint>,
     descriptors: Vec<f32>,
     descriptor_len: usize,
-    sign_bits: Vec<u8>,
+    /// Packed on the first [`spslam_features_binary_view`] call only, so
+    /// that the float mode pays nothing per frame.
+    sign_bits: std::cell::OnceCell<Vec<u8>>,
 }
 
 // Handles move between threads (ORB-SLAM3 creates extractors on one thread and
@@ -727,17 +729,11 @@ fn into_c_features(features: Features) -> SpslamFeatures {
         .iter()
         .map(SpslamKeypoint::from)
         .collect();
-    let mut sign_bits = Vec::new();
-    crate::features::sign_bits::pack_sign_bits(
-        &features.descriptors,
-        features.descriptor_len,
-        &mut sign_bits,
-    );
     SpslamFeatures {
         keypoints,
         descriptors: features.descriptors,
         descriptor_len: features.descriptor_len,
-        sign_bits,
+        sign_bits: std::cell::OnceCell::new(),
     }
 }
 
@@ -799,7 +795,17 @@ pub unsafe extern "C" fn spslam_features_binary_view(
             data: if count == 0 {
                 std::ptr::null()
             } else {
-                f.sign_bits.as_ptr()
+                f.sign_bits
+                    .get_or_init(|| {
+                        let mut bits = Vec::new();
+                        crate::features::sign_bits::pack_sign_bits(
+                            &f.descriptors,
+                            f.descriptor_len,
+                            &mut bits,
+                        );
+                        bits
+                    })
+                    .as_ptr()
             },
         };
         // SAFETY: forwarded caller contract on `out`.

@@ -125,6 +125,44 @@ fn superpoint_stereo_check(data: &std::path::Path, precision: Precision) -> f32 
     matched as f32 / left.len().max(1) as f32
 }
 
+/// ORB-SLAM3's `ComputeStereoMatches` for binary rows: ORB's Hamming stereo
+/// threshold, no ratio test along the row, no periodic guard.
+fn orb_slam3_hamming_params() -> StereoParams {
+    StereoParams {
+        ratio: None,
+        ..StereoParams::new(
+            KITTI_BF,
+            KITTI_BASELINE,
+            DistanceThresholds::ORB_HAMMING.stereo(),
+            None,
+        )
+    }
+}
+
+/// Matches a KITTI pair's features along rows and computes SGBM's
+/// disparity of the same images, the reference.
+fn match_rows_with_sgbm(
+    (left, right): (&FrameFeatures, &FrameFeatures),
+    (left_img, right_img): (&GrayImage, &GrayImage),
+    tables: &ScaleTables,
+    params: &StereoParams,
+) -> (StereoOutcome, spslam::matching::dense::DisparityMap) {
+    let outcome = match_stereo(
+        left,
+        right,
+        StereoImages {
+            left: left_img.view(),
+            right: right_img.view(),
+        },
+        tables,
+        params,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let sgbm =
+        sgbm_disparity(left_img.view(), right_img.view(), 160).unwrap_or_else(|e| panic!("{e}"));
+    (outcome, sgbm)
+}
+
 #[test]
 fn superpoint_stereo_on_kitti_agrees_with_sgbm() {
     let Some(data) = common::setup("superpoint_stereo_on_kitti_agrees_with_sgbm") else {
@@ -163,28 +201,13 @@ fn orb_hamming_stereo_on_kitti() {
         .extract(right_img.view())
         .unwrap_or_else(|e| panic!("{e}"));
     // ORB-SLAM3 has no ratio test along the row for ORB.
-    let params = StereoParams {
-        ratio: None,
-        ..StereoParams::new(
-            KITTI_BF,
-            KITTI_BASELINE,
-            DistanceThresholds::ORB_HAMMING.stereo(),
-            None,
-        )
-    };
-    let outcome = match_stereo(
-        &left,
-        &right,
-        StereoImages {
-            left: left_img.view(),
-            right: right_img.view(),
-        },
+    let params = orb_slam3_hamming_params();
+    let (outcome, sgbm) = match_rows_with_sgbm(
+        (&left, &right),
+        (&left_img, &right_img),
         orb.scale_tables(),
         &params,
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
-    let sgbm =
-        sgbm_disparity(left_img.view(), right_img.view(), 160).unwrap_or_else(|e| panic!("{e}"));
+    );
     let (checked, good) = agreement(&left, &outcome, &sgbm, 1.5);
     println!(
         "ORB: {} matches of {}; vs SGBM {good}/{checked} within 1.5 px; rejections {:?}",
@@ -439,29 +462,12 @@ fn superpoint_binary_mode_stereo_on_kitti() {
     let right = to_binary(
         FeatureExtractor::extract(&mut sp, right_img.view()).unwrap_or_else(|e| panic!("{e}")),
     );
-    let params = StereoParams {
-        ratio: None,
-        ..StereoParams::new(
-            KITTI_BF,
-            KITTI_BASELINE,
-            DistanceThresholds::ORB_HAMMING.stereo(),
-            None,
-        )
-    };
-    let tables = FeatureExtractor::scale_tables(&sp).clone();
-    let outcome = match_stereo(
-        &left,
-        &right,
-        StereoImages {
-            left: left_img.view(),
-            right: right_img.view(),
-        },
-        &tables,
-        &params,
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
-    let sgbm =
-        sgbm_disparity(left_img.view(), right_img.view(), 160).unwrap_or_else(|e| panic!("{e}"));
+    let (outcome, sgbm) = match_rows_with_sgbm(
+        (&left, &right),
+        (&left_img, &right_img),
+        FeatureExtractor::scale_tables(&sp),
+        &orb_slam3_hamming_params(),
+    );
     let (checked, good) = agreement(&left, &outcome, &sgbm, 1.5);
     let (_, good2) = agreement(&left, &outcome, &sgbm, 2.0);
     println!(

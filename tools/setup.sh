@@ -149,13 +149,19 @@ else
     mv -f "$MODEL.tmp.$$" "$MODEL"
     step export "${out/$MODEL.tmp.$$/$MODEL}"
 fi
-model_sha="$(sha256 "$MODEL")"
-pinned_sha="$(cut -d' ' -f1 "$PINNED_SHA_FILE" 2>/dev/null || true)"
-if [[ "$model_sha" == "$pinned_sha" ]]; then
-    step model "sha256 $model_sha matches tools/superpoint.onnx.sha256"
-else
-    step model "WARNING: sha256 $model_sha differs from tools/superpoint.onnx.sha256 ($pinned_sha)"
-fi
+# check_pinned STEP MODEL PIN_FILE: the model's sha256 against the pinned one.
+check_pinned() {
+    local got pinned name
+    got="$(sha256 "$2")"
+    pinned="$(cut -d' ' -f1 "$3" 2>/dev/null || true)"
+    name="tools/$(basename "$3")"
+    if [[ "$got" == "$pinned" ]]; then
+        step "$1" "sha256 $got matches $name"
+    else
+        step "$1" "WARNING: sha256 $got differs from $name ($pinned)"
+    fi
+}
+check_pinned model "$MODEL" "$PINNED_SHA_FILE"
 
 # ---- 6. int8 model ------------------------------------------------------------
 if [[ -f "$MODEL_INT8" && ! "$QUANTIZER" -nt "$MODEL_INT8" && ! "$EXPORTER" -nt "$MODEL_INT8" \
@@ -170,10 +176,4 @@ else
     mv -f "$MODEL_INT8.tmp.$$" "$MODEL_INT8"
     step int8 "${out/$MODEL_INT8.tmp.$$/$MODEL_INT8}"
 fi
-int8_sha="$(sha256 "$MODEL_INT8")"
-pinned_int8_sha="$(cut -d' ' -f1 "$PINNED_INT8_SHA_FILE" 2>/dev/null || true)"
-if [[ "$int8_sha" == "$pinned_int8_sha" ]]; then
-    step int8-model "sha256 $int8_sha matches tools/superpoint_int8.onnx.sha256"
-else
-    step int8-model "WARNING: sha256 $int8_sha differs from tools/superpoint_int8.onnx.sha256 ($pinned_int8_sha)"
-fi
+check_pinned int8-model "$MODEL_INT8" "$PINNED_INT8_SHA_FILE"
