@@ -61,6 +61,7 @@ test-python: setup
 	$(PYTHON) tools/test_export.py
 
 include cpp_shim/cpp.mk
+include cpp_shim/orbslam3/orbslam3.mk
 
 # The whole suite: formatting and lints, Rust unit/property/integration tests,
 # the exporter's tests, and the C++ shim's tests (with valgrind).

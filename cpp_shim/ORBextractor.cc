@@ -10,7 +10,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
+#include <memory>
 #include <mutex>
+#include <unordered_map>
 
 #include "spslam.h"
 
@@ -20,6 +22,11 @@ namespace ORB_SLAM3
 const int PATCH_SIZE = 31;
 const int HALF_PATCH_SIZE = 15;
 const int EDGE_THRESHOLD = 19;
+// ORB-SLAM3 never returns a keypoint within EDGE_THRESHOLD - 3 = 16 px of a
+// level's border (ComputeKeyPointsOctTree's minBorderX/minBorderY), and
+// Frame::ComputeStereoMatches relies on it: its SAD window reads 10 px left
+// of a right-image keypoint without a bounds check (and throws otherwise).
+const int ORB_SLAM3_MIN_BORDER = EDGE_THRESHOLD - 3;
 
 namespace
 {
@@ -41,6 +48,59 @@ std::string Lowercase(std::string text)
     return text;
 }
 
+// What one ORBextractor owns beyond ORB-SLAM3 v1.0's members (see the header:
+// the class keeps v1.0's layout), keyed by the object's address.
+struct ExtractorState
+{
+    SpslamExtractor* extractor = nullptr;
+    int descriptorLength = 0;
+    bool binaryDescriptors = false;
+    std::string lastError;
+
+    ExtractorState() = default;
+    ExtractorState(const ExtractorState&) = delete;
+    ExtractorState& operator=(const ExtractorState&) = delete;
+    ~ExtractorState() { spslam_extractor_destroy(extractor); }
+};
+
+std::mutex gStatesMutex;
+std::unordered_map<const void*, std::shared_ptr<ExtractorState>> gStates;
+
+// The state of `owner`; an empty one when there is none (never null).
+std::shared_ptr<ExtractorState> StateOf(const void* owner)
+{
+    std::lock_guard<std::mutex> lock(gStatesMutex);
+    auto found = gStates.find(owner);
+    if (found != gStates.end())
+        return found->second;
+    static const std::shared_ptr<ExtractorState> empty = std::make_shared<ExtractorState>();
+    return empty;
+}
+
+// Installs a fresh state for `owner`, replacing (and so destroying) any left
+// by an object that lived at the same address without running our destructor.
+std::shared_ptr<ExtractorState> ResetState(const void* owner)
+{
+    auto state = std::make_shared<ExtractorState>();
+    std::lock_guard<std::mutex> lock(gStatesMutex);
+    gStates[owner] = state;
+    return state;
+}
+
+void EraseState(const void* owner)
+{
+    std::shared_ptr<ExtractorState> state;
+    {
+        std::lock_guard<std::mutex> lock(gStatesMutex);
+        auto found = gStates.find(owner);
+        if (found == gStates.end())
+            return;
+        state = std::move(found->second);
+        gStates.erase(found);
+    }
+    // `state` (and the spslam extractor) is released here, outside the lock.
+}
+
 std::string LastSpslamError()
 {
     const char* message = spslam_last_error();
@@ -58,16 +118,16 @@ void ORBextractor::SetRuntimePaths(const std::string& modelPath, const std::stri
 
 void ORBextractor::Fail(const std::string& message)
 {
-    mLastError = message;
+    StateOf(this)->lastError = message;
     std::cerr << "[spslam ORBextractor] " << message << std::endl;
 }
 
 ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
          int _iniThFAST, int _minThFAST):
     nfeatures(_nfeatures), scaleFactor(_scaleFactor), nlevels(_nlevels),
-    iniThFAST(_iniThFAST), minThFAST(_minThFAST), mpExtractor(nullptr), mnDescriptorLength(0),
-    mbBinaryDescriptors(false)
+    iniThFAST(_iniThFAST), minThFAST(_minThFAST)
 {
+    const std::shared_ptr<ExtractorState> state = ResetState(this);
     // The tables as ORB-SLAM3's constructor computes them; they are replaced
     // by the library's below (identical by construction, checked by the tests).
     const int levels = std::max(nlevels, 1);
@@ -128,6 +188,8 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
         return;
     }
 
+    config.border = std::max<uint32_t>(config.border, ORB_SLAM3_MIN_BORDER);
+
     std::string modelPath, ortLibraryPath;
     {
         std::lock_guard<std::mutex> lock(gPathsMutex);
@@ -160,7 +222,7 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
     }
     const std::string descriptors = Lowercase(EnvOrEmpty("SPSLAM_DESCRIPTORS"));
     if (descriptors == "binary")
-        mbBinaryDescriptors = true;
+        state->binaryDescriptors = true;
     else if (!descriptors.empty() && descriptors != "float")
     {
         Fail("SPSLAM_DESCRIPTORS=" + descriptors + " is not a descriptor mode: use float or binary");
@@ -204,14 +266,34 @@ ORBextractor::ORBextractor(int _nfeatures, float _scaleFactor, int _nlevels,
         spslam_extractor_destroy(extractor);
         return;
     }
-    mpExtractor = extractor;
-    mnDescriptorLength = static_cast<int>(descriptorLength);
+    state->extractor = extractor;
+    state->descriptorLength = static_cast<int>(descriptorLength);
 }
 
 ORBextractor::~ORBextractor()
 {
-    spslam_extractor_destroy(mpExtractor);
-    mpExtractor = nullptr;
+    EraseState(this);
+}
+
+bool ORBextractor::IsValid() const
+{
+    return StateOf(this)->extractor != nullptr;
+}
+
+std::string ORBextractor::GetLastError() const
+{
+    const std::shared_ptr<ExtractorState> state = StateOf(this);
+    return state->lastError;
+}
+
+int ORBextractor::GetDescriptorLength() const
+{
+    return StateOf(this)->descriptorLength;
+}
+
+bool ORBextractor::BinaryDescriptors() const
+{
+    return StateOf(this)->binaryDescriptors;
 }
 
 void ORBextractor::ComputePyramid(cv::Mat image)
@@ -250,10 +332,11 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
     if(_image.empty())
         return -1;
 
-    if (!mpExtractor)
+    const std::shared_ptr<ExtractorState> state = StateOf(this);
+    if (!state->extractor)
     {
         // Keep the construction error as the last error; log it again.
-        std::cerr << "[spslam ORBextractor] extractor is not valid (construction failed): " << mLastError << std::endl;
+        std::cerr << "[spslam ORBextractor] extractor is not valid (construction failed): " << state->lastError << std::endl;
         _keypoints.clear();
         _descriptors.release();
         return -1;
@@ -278,7 +361,7 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
 
     SpslamFeatures* features = nullptr;
     const size_t dataLength = image.step[0] * static_cast<size_t>(image.rows - 1) + static_cast<size_t>(image.cols);
-    if (spslam_extract(mpExtractor, image.data, dataLength, static_cast<size_t>(image.cols),
+    if (spslam_extract(state->extractor, image.data, dataLength, static_cast<size_t>(image.cols),
                        static_cast<size_t>(image.rows), image.step[0], &features) != SPSLAM_STATUS_OK)
     {
         Fail(LastSpslamError());
@@ -296,7 +379,7 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
         return -1;
     }
     SpslamBinaryView binary = {0, 0, nullptr};
-    if (mbBinaryDescriptors && spslam_features_binary_view(features, &binary) != SPSLAM_STATUS_OK)
+    if (state->binaryDescriptors && spslam_features_binary_view(features, &binary) != SPSLAM_STATUS_OK)
     {
         Fail(LastSpslamError());
         spslam_features_destroy(features);
@@ -304,7 +387,7 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
         _descriptors.release();
         return -1;
     }
-    mLastError.clear();
+    state->lastError.clear();
 
     const int nkeypoints = static_cast<int>(view.count);
     const int D = static_cast<int>(view.descriptor_len);
@@ -314,7 +397,7 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
         _descriptors.release();
     else
     {
-        if (mbBinaryDescriptors)
+        if (state->binaryDescriptors)
             _descriptors.create(nkeypoints, rowBytes, CV_8U);
         else
             _descriptors.create(nkeypoints, D, CV_32F);
@@ -340,7 +423,7 @@ int ORBextractor::operator()( cv::InputArray _image, cv::InputArray _mask, std::
         else
             index = monoIndex++;
         _keypoints[index] = keypoint;
-        if (mbBinaryDescriptors)
+        if (state->binaryDescriptors)
             std::memcpy(descriptors.ptr<uchar>(index), binary.data + static_cast<size_t>(i) * binary.bytes_per_row,
                         static_cast<size_t>(rowBytes));
         else

@@ -118,18 +118,18 @@ public:
 
     // False when construction failed (the reason was logged to std::cerr and
     // is returned by GetLastError()).
-    bool IsValid() const { return mpExtractor != nullptr; }
+    bool IsValid() const;
 
     // The last error message of this extractor ("" when none).
-    const std::string& GetLastError() const { return mLastError; }
+    std::string GetLastError() const;
 
     // Floats per descriptor (256), or 0 when the extractor is not valid.
-    int GetDescriptorLength() const { return mnDescriptorLength; }
+    int GetDescriptorLength() const;
 
     // True in binary mode (SPSLAM_DESCRIPTORS=binary): operator() returns the
     // descriptors' sign bits as an N x 32 CV_8U matrix in ORB's layout, so
     // that ORB-SLAM3's own matcher and a vocabulary trained on these bits work.
-    bool BinaryDescriptors() const { return mbBinaryDescriptors; }
+    bool BinaryDescriptors() const;
 
 protected:
 
@@ -155,10 +155,12 @@ protected:
 private:
     void Fail(const std::string& message);
 
-    SpslamExtractor* mpExtractor;
-    int mnDescriptorLength;
-    bool mbBinaryDescriptors;
-    std::string mLastError;
+    // No data members beyond ORB-SLAM3 v1.0's: the class keeps v1.0's exact
+    // layout and sizeof (224 bytes on x86-64), so code compiled against
+    // ORB-SLAM3's own header (its inline accessors, `new ORBextractor`) works
+    // with this implementation unchanged (the preload library relies on it).
+    // The spslam extractor, the descriptor mode and the last error live in a
+    // table keyed by `this` (ORBextractor.cc).
 };
 
 } //namespace ORB_SLAM

@@ -101,6 +101,7 @@ Result RunCApi(const Params& p, const cv::Mat& image)
               SPSLAM_STATUS_OK, "%s", LastError().c_str());
     config.threads = ThreadsFromEnv();
     config.precision = SPSLAM_PRECISION_FP32; // the shim's default
+    config.border = 16;                         // the shim's: ORB-SLAM3's minimum border (EDGE_THRESHOLD - 3)
     SpslamExtractor* extractor = nullptr;
     if (spslam_extractor_create(&config, &extractor) != SPSLAM_STATUS_OK)
     {
@@ -232,6 +233,33 @@ void TestPyramid(const Params& p, ORB_SLAM3::ORBextractor& extractor, const cv::
         CHECK(offset == cv::Point(19, 19) && whole == cv::Size(l.cols + 38, l.rows + 38), "level %d border", level);
         previous = want;
     }
+}
+
+// ORB-SLAM3 v1.0 code compiled against its own header (the preload's case)
+// allocates sizeof == 224 and reads the members at v1.0's offsets.
+static_assert(sizeof(ORB_SLAM3::ORBextractor) == 224, "ORBextractor keeps ORB-SLAM3 v1.0's size");
+
+// ORB-SLAM3's contract on keypoint positions: never within EDGE_THRESHOLD - 3
+// = 16 px of a level's border. Frame::ComputeStereoMatches depends on it: its
+// SAD windows read rows v-5..v+5 of the left level and columns u-10..u+11
+// around a right keypoint without bounds checks (cv::Mat throws otherwise).
+void TestOrbSlam3Borders(ORB_SLAM3::ORBextractor& extractor, const Result& result, const char* what)
+{
+    const std::vector<float> inv = extractor.GetInverseScaleFactors();
+    size_t outside = 0;
+    for (const cv::KeyPoint& k : result.keypoints)
+    {
+        if (k.octave < 0 || k.octave >= static_cast<int>(extractor.mvImagePyramid.size()))
+        {
+            ++outside;
+            continue;
+        }
+        const cv::Mat& level = extractor.mvImagePyramid[k.octave];
+        const int u = cvRound(k.pt.x * inv[k.octave]), v = cvRound(k.pt.y * inv[k.octave]);
+        if (u < 16 || v < 16 || u >= level.cols - 16 || v >= level.rows - 16)
+            ++outside;
+    }
+    CHECK(outside == 0, "%s: %zu keypoints within 16 px of their level's border", what, outside);
 }
 
 void TestLapping(const Params& p, const Result& plain, ORB_SLAM3::ORBextractor& extractor, const cv::Mat& image)
@@ -533,13 +561,14 @@ int main(int argc, char** argv)
     if (p.small)
     {
         // ONNX Runtime's kernels run ~1000x slower under valgrind (15 s for
-        // one 64x48 inference), so the memory check uses a small textured crop.
-        const cv::Rect crop(720, 170, 64, 48);
+        // one 64x48 inference), so the memory check uses a small textured crop
+        // (80x64: keypoints keep 16 px from the border, as ORB-SLAM3's).
+        const cv::Rect crop(712, 162, 80, 64);
         left = left(crop).clone();
         right = right(crop).clone();
         p.nfeatures = 60;
         p.nlevels = 2;
-        p.lapping = {20, 40};
+        p.lapping = {30, 50};
     }
     std::printf("spslam %s, %s mode, %dx%d images, nfeatures=%d nlevels=%d\n", spslam_version(),
                 p.small ? "small" : "full", left.cols, left.rows, p.nfeatures, p.nlevels);
@@ -570,7 +599,9 @@ int main(int argc, char** argv)
     // With a lapping area: the shim's output is the C ABI's, reordered as ORB-SLAM3 does.
     TestLapping(p, capi, extractor, left);
     TestPyramid(p, extractor, left);
+    TestOrbSlam3Borders(extractor, plain, "left");
     const Result rightPlain = RunShim(extractor, right, {0, 0});
+    TestOrbSlam3Borders(extractor, rightPlain, "right");
     TestParallel(p, extractor, left, right, plain, rightPlain);
     TestBadImages(p, extractor, left, plain);
     TestCApiErrors(p);

@@ -7,9 +7,8 @@ on a KITTI-layout sequence and save its trajectory in KITTI (and TUM) format.
 - Settings: written from the sequence's calib.txt (P0/P1) in ORB-SLAM3's
   older key layout (Camera.fx, Camera.bf, ...); the newer "Rectified" layout
   (File.version "1.0") segfaults in this build.
-- Vocabulary: --vocab, else $ORBSLAM3_VOCAB, else <repo>/.deps/orbslam3/voc.txt,
-  built on first use with make_vocab.py (beside this script) from the
-  sequence's own images: ORBvoc.txt itself is not available from any registry.
+- Vocabulary: --vocab, a DBoW2 text vocabulary (`spslam vocab train --format
+  dbow2`; ORBvoc.txt itself is not available from any registry).
 - Images are read by the wheel's own OpenCV 4.8 (load_and_process_stereo), so
   no numpy/cv2 array crosses into the extension (the extension was compiled
   against the NumPy 1.x C-API, the venv may hold NumPy 2).
@@ -109,22 +108,11 @@ def child_env():
     return env
 
 
-def ensure_vocab(a, left_dir, right_dir):
-    if a.vocab:
-        if not os.path.isfile(a.vocab):
-            raise SystemExit(f"vocabulary {a.vocab} not found")
-        return a.vocab
-    env = os.environ.get("ORBSLAM3_VOCAB")
-    if env and os.path.isfile(env):
-        return env
-    voc = os.path.join(ROOT, ".deps", "orbslam3", "voc.txt")
-    if not os.path.isfile(voc):
-        os.makedirs(os.path.dirname(voc), exist_ok=True)
-        print(f"[run_stereo] building vocabulary {voc} from {left_dir} and {right_dir}", file=sys.stderr)
-        subprocess.run([sys.executable, os.path.join(HERE, "make_vocab.py"), "--out", voc + ".part",
-                        left_dir, right_dir], check=True, env=child_env())
-        os.replace(voc + ".part", voc)
-    return voc
+def check_vocab(path):
+    if not path or not os.path.isfile(path):
+        raise SystemExit(f"vocabulary {path!r} not found: train one with `spslam vocab train --format dbow2` "
+                         "(tools/orbslam3/check.py does it for each mode)")
+    return path
 
 
 def invert_rt(m):
@@ -155,9 +143,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seq", default=os.path.join(SHARED, "kitti", "sequences", "06"))
     ap.add_argument("--gt", default=os.path.join(SHARED, "kitti", "poses", "06.txt"))
-    ap.add_argument("--vocab", help="DBoW2 text vocabulary (see make_vocab.py)")
+    ap.add_argument("--vocab", required=True, help="DBoW2 text vocabulary (spslam vocab train --format dbow2)")
     ap.add_argument("--out", default="orbslam3_kitti06.txt", help="trajectory, KITTI format (TUM beside it: .tum)")
     ap.add_argument("--settings-out", help="where to write the settings YAML (default: beside --out)")
+    ap.add_argument("--settings-in", help="use this ORB-SLAM3 settings file instead of writing one from calib.txt")
     ap.add_argument("--max-frames", type=int, default=0)
     ap.add_argument("--nfeatures", type=int, default=2000)
     ap.add_argument("--scale-factor", type=float, default=1.2)
@@ -193,8 +182,11 @@ def main():
 
     out = os.path.abspath(a.out)
     settings = a.settings_out or os.path.splitext(out)[0] + "_settings.yaml"
-    write_settings(settings, read_calib(os.path.join(a.seq, "calib.txt")), image_size(lefts[0]), fps, a)
-    voc = ensure_vocab(a, left_dir, right_dir)
+    if a.settings_in:
+        settings = os.path.abspath(a.settings_in)
+    else:
+        write_settings(settings, read_calib(os.path.join(a.seq, "calib.txt")), image_size(lefts[0]), fps, a)
+    voc = check_vocab(a.vocab)
 
     import orbslam3  # after LD_PRELOAD is in place
 

@@ -1,0 +1,91 @@
+/**
+ * float_distance.h: L2 distances between SuperPoint descriptor rows, on the
+ * integer scales ORB-SLAM3's matcher and DBoW2's vocabulary expect.
+ *
+ * ORB-SLAM3 v1.0 compiled its thresholds into ORBmatcher.cc as immediates
+ * (TH_LOW = 50, TH_HIGH = 100, stereo (50 + 100) / 2 = 75, "no match yet" =
+ * 256), so a float descriptor's distance must land on that 0..255 scale with
+ * SuperPoint's own thresholds at those marks. spslam measured them
+ * (src/matching/thresholds.rs, DistanceThresholds::SUPERPOINT_L2): L2 0.6 for
+ * TH_LOW and 0.8 for TH_HIGH. The scale is piecewise linear and monotone:
+ *
+ *   L2 in [0, 0.6]   ->  L2 * 50 / 0.6          (0 .. 50; ratios preserved)
+ *   L2 in (0.6, 1.42] ->  50 + (L2 - 0.6) * 250  (50 .. 255; 0.7 -> 75, 0.8 -> 100)
+ *   beyond            ->  255
+ *
+ * so ORB-SLAM3's TH_LOW, stereo and TH_HIGH tests become L2 < 0.6, 0.7 and
+ * 0.8, exactly spslam's own. The vocabulary only needs an order (the nearest
+ * child at each tree level), so its distance is the squared L2 in units of
+ * 2^-24 (exact enough to tell centres apart; at most 2^26 for unit rows).
+ */
+
+#ifndef SPSLAM_ORBSLAM3_FLOAT_DISTANCE_H
+#define SPSLAM_ORBSLAM3_FLOAT_DISTANCE_H
+
+#include <cmath>
+#include <climits>
+
+namespace spslam_orbslam3
+{
+
+/// SuperPoint's TH_LOW and TH_HIGH in L2 (src/matching/thresholds.rs).
+constexpr float kL2AtThLow = 0.6f;
+constexpr float kL2AtThHigh = 0.8f;
+/// ORB-SLAM3's compiled-in thresholds, the marks of the integer scale.
+constexpr int kThLow = 50;
+constexpr int kThHigh = 100;
+/// Larger than any scaled distance: what mismatched rows get.
+constexpr int kNoMatch = 256;
+
+/// Squared L2 distance of two float rows (four partial sums, so the compiler
+/// vectorises it without -ffast-math; AVX2 and FMA where the CPU has them).
+__attribute__((target_clones("arch=x86-64-v3", "default")))
+inline float SquaredL2(const float* a, const float* b, int n)
+{
+    float s0 = 0.f, s1 = 0.f, s2 = 0.f, s3 = 0.f;
+    int i = 0;
+    for (; i + 4 <= n; i += 4)
+    {
+        const float d0 = a[i] - b[i], d1 = a[i + 1] - b[i + 1];
+        const float d2 = a[i + 2] - b[i + 2], d3 = a[i + 3] - b[i + 3];
+        s0 += d0 * d0;
+        s1 += d1 * d1;
+        s2 += d2 * d2;
+        s3 += d3 * d3;
+    }
+    for (; i < n; ++i)
+    {
+        const float d = a[i] - b[i];
+        s0 += d * d;
+    }
+    return (s0 + s1) + (s2 + s3);
+}
+
+/// An L2 distance on ORB-SLAM3's 0..255 descriptor-distance scale (see above).
+inline int MatcherScale(float l2)
+{
+    if (!(l2 >= 0.f))
+        return kNoMatch;
+    float scaled;
+    if (l2 <= kL2AtThLow)
+        scaled = l2 * (static_cast<float>(kThLow) / kL2AtThLow);
+    else
+        scaled = static_cast<float>(kThLow) +
+                 (l2 - kL2AtThLow) * (static_cast<float>(kThHigh - kThLow) / (kL2AtThHigh - kL2AtThLow));
+    if (scaled >= 255.f)
+        return 255;
+    return static_cast<int>(std::lround(scaled));
+}
+
+/// A squared L2 distance in units of 2^-24, for the vocabulary's nearest-child search.
+inline int VocabularyScale(float squaredL2)
+{
+    if (!(squaredL2 >= 0.f))
+        return INT_MAX;
+    const double scaled = static_cast<double>(squaredL2) * 16777216.0;
+    return scaled >= static_cast<double>(INT_MAX) ? INT_MAX : static_cast<int>(scaled + 0.5);
+}
+
+} // namespace spslam_orbslam3
+
+#endif
