@@ -30,12 +30,18 @@ CPP_VALGRIND_FLAGS ?= --error-exitcode=1 --leak-check=full --errors-for-leak-kin
 	--suppressions=$(CPP_SHIM_DIR)/valgrind.supp --num-callers=40
 
 CPP_TEST_BIN := $(CPP_BUILD_DIR)/test_orbextractor
+CPP_DISTANCE_TEST_BIN := $(CPP_BUILD_DIR)/test_float_distance
 CPP_EXAMPLE_BIN := $(CPP_BUILD_DIR)/stereo_kitti
 CPP_HEADERS := include/spslam.h $(CPP_SHIM_DIR)/ORBextractor.h
 
 .PHONY: cpp-build cpp-test cpp-example
 
-cpp-build: $(CPP_TEST_BIN) $(CPP_EXAMPLE_BIN)
+cpp-build: $(CPP_TEST_BIN) $(CPP_EXAMPLE_BIN) $(CPP_DISTANCE_TEST_BIN)
+
+# The ORB-SLAM3 preload's descriptor distances (header only, no library).
+$(CPP_DISTANCE_TEST_BIN): $(CPP_SHIM_DIR)/tests/test_float_distance.cc $(CPP_SHIM_DIR)/orbslam3/float_distance.h
+	@mkdir -p $(CPP_BUILD_DIR)
+	$(CXX) $(CPP_CXXFLAGS) -I$(CPP_SHIM_DIR) $< -o $@
 
 # The Rust library comes from `rust-release` (defined by the top Makefile);
 # the empty recipe makes make re-read its time stamp after cargo ran, so the
@@ -62,6 +68,7 @@ $(CPP_EXAMPLE_BIN): $(CPP_BUILD_DIR)/stereo_kitti.o $(CPP_BUILD_DIR)/ORBextracto
 	$(CXX) -o $@ $(filter %.o,$^) $(CPP_LDLIBS)
 
 cpp-test: cpp-build
+	$(CPP_DISTANCE_TEST_BIN)
 	$(CPP_TEST_BIN) $(SPSLAM_DATA)
 ifneq ($(CPP_VALGRIND),0)
 	SPSLAM_THREADS=1 $(VALGRIND) $(CPP_VALGRIND_FLAGS) $(CPP_TEST_BIN) --small $(SPSLAM_DATA)
