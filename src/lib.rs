@@ -6,7 +6,9 @@
 //! - `ffi`: a C ABI over the extractor (see `include/spslam.h`);
 //! - the SLAM core, bottom up: [`map`], [`camera`], [`tracking`] and
 //!   [`mapping`] (which never import each other's layers above), and
-//!   [`system`], which drives them over an atlas of maps.
+//!   [`system`], which drives them over an atlas of maps;
+//! - [`place`]: place recognition below the system layer (today the
+//!   k-means and DBoW2 vocabulary training behind `spslam vocab train`).
 #![warn(missing_docs)]
 
 pub mod camera;
@@ -19,6 +21,7 @@ pub mod map;
 pub mod mapping;
 pub mod matching;
 pub mod optim;
+pub mod place;
 pub mod settings;
 pub mod system;
 pub mod tracking;

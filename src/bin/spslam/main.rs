@@ -4,6 +4,7 @@ mod eval;
 mod extract;
 mod run;
 mod synth;
+mod vocab;
 
 use clap::{Parser, Subcommand};
 
@@ -28,6 +29,8 @@ enum Command {
     Run(run::RunArgs),
     /// Write a synthetic stereo/RGB-D sequence with exact ground truth (KITTI layout).
     Synth(synth::SynthArgs),
+    /// Place-recognition vocabularies: `spslam vocab train` trains a DBoW2 vocabulary.
+    Vocab(vocab::VocabArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -59,6 +62,7 @@ fn main() -> std::process::ExitCode {
         Command::Eval(args) => eval::run_eval(args).map(success),
         Command::Synth(args) => synth::run_synth(args).map(success),
         Command::Run(args) => run::run_slam(args),
+        Command::Vocab(args) => vocab::run_vocab(args).map(success),
     };
     match result {
         Ok(code) => code,
