@@ -64,8 +64,10 @@ include cpp_shim/cpp.mk
 include cpp_shim/orbslam3/orbslam3.mk
 
 # The whole suite: formatting and lints, Rust unit/property/integration tests,
-# the exporter's tests, and the C++ shim's tests (with valgrind).
-test: lint test-rust test-python cpp-test
+# the exporter's tests, the C++ shim's tests (with valgrind), and the real
+# ORB-SLAM3 v1.0 (PyPI wheel) on KITTI 06 with ORB, the float preload and
+# the binary preload, three runs each (about 6 minutes on 2 cores).
+test: lint test-rust test-python cpp-test orbslam3-check
 
 bench: build
 	$(CARGO) bench --bench anms --bench extractor --bench precision --bench slam

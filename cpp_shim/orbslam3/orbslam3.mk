@@ -7,7 +7,7 @@
 #                         binary), three runs each; out/orbslam3/{orb,float,binary}/
 #                         SEQ=DIR GT=FILE: any KITTI-layout sequence
 #
-# Included from the top Makefile (rust-release, setup, PYTHON-free).
+# Included from the top Makefile after cpp_shim/cpp.mk (CPP_* variables, rust-release, build).
 
 ORBSLAM3_VENV ?= .deps/venv-orbslam3
 ORBSLAM3_BUILD_DIR ?= target/orbslam3
@@ -16,8 +16,10 @@ ORBSLAM3_PRELOAD := $(ORBSLAM3_BUILD_DIR)/libspslam_orbslam3.so
 ORBSLAM3_IMPL := $(ORBSLAM3_BUILD_DIR)/libspslam_orbslam3_impl.so
 ORBSLAM3_STAMP := $(ORBSLAM3_VENV)/.spslam-orbslam3-installed
 # The wheel's own OpenCV 4.8 (the implementation links it, never Debian's).
-ORBSLAM3_LIBS = $(abspath $(wildcard $(ORBSLAM3_VENV)/lib/python3*/site-packages/orbslam3_python.libs))
-ORBSLAM3_CV_LIBS = $(foreach m,core imgproc,-l:$(notdir $(firstword $(wildcard $(ORBSLAM3_LIBS)/libopencv_$(m)-*.so.4.8.0))))
+# (`shell`, not `wildcard`: make caches folder listings, and the venv may be
+# created by this very make run.)
+ORBSLAM3_LIBS = $(shell ls -d $(abspath $(ORBSLAM3_VENV))/lib/python3*/site-packages/orbslam3_python.libs 2>/dev/null | head -n1)
+ORBSLAM3_CV_LIBS = $(foreach m,core imgproc,-l:$(shell cd $(ORBSLAM3_LIBS) 2>/dev/null && ls libopencv_$(m)-*.so.4.8.0 | head -n1))
 ORBSLAM3_CXXFLAGS := -std=c++17 -O2 -g -Wall -Wextra -fPIC
 SEQ ?=
 GT ?=
