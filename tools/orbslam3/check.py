@@ -10,7 +10,10 @@ orbslam3-python==2.0.0) in stereo on a KITTI-layout sequence, three ways:
           vocabulary trained on those bits.
 
 Each mode runs --runs times (a fresh process each, normal Python exit so that
-ORB-SLAM3's shutdown and destructors run too). Every run is evaluated with
+ORB-SLAM3's shutdown and destructors run too), paced as ORB-SLAM3's
+stereo_kitti example paces KITTI: after a frame, wait for the next frame's
+time stamp (no wait when tracking is slower than the camera, as SuperPoint
+on this CPU is). Every run is evaluated with
 `spslam eval --json`. Written under --out (default out/orbslam3):
 
   settings.yaml                      the ORB-SLAM3 settings (older key layout,

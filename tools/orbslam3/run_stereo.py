@@ -158,6 +158,10 @@ def main():
     ap.add_argument("--preload", help="LD_PRELOAD this library (re-executes the script)")
     ap.add_argument("--eval", action="store_true", help="run target/release/spslam eval against --gt")
     ap.add_argument("--json", help="write a summary JSON here")
+    ap.add_argument("--pace", action=argparse.BooleanOptionalAction, default=True,
+                    help="wait until the next frame's time stamp after each frame, as ORB-SLAM3's examples (default on)")
+    ap.add_argument("--pace-idle", action="store_true",
+                    help="idle a whole frame period after every frame (for extractors slower than the camera)")
     ap.add_argument("--clean-exit", action="store_true", help="exit through Python's normal teardown")
     a = ap.parse_args()
 
@@ -208,6 +212,18 @@ def main():
         print(f"frame {i:4d} t={times[i]:.4f} ok={ok} state={states[-1]} "
               f"features={slam.get_num_features()} matched={slam.get_num_matched_features()} "
               f"{frame_ms[-1]:.1f} ms", flush=True)
+        if a.pace and i + 1 < n:
+            # As ORB-SLAM3's stereo_kitti example: wait for the next frame's
+            # time stamp, so that local mapping gets the time a live camera
+            # would give it (no wait when tracking is slower than the camera).
+            period = times[i + 1] - times[i]
+            spent = frame_ms[-1] / 1000.0
+            if a.pace_idle:
+                # Slower than the camera here: idle for a whole frame period,
+                # the back-end time an extractor that keeps up would leave.
+                time.sleep(period)
+            elif spent < period:
+                time.sleep(period - spent)
     t_track = sum(frame_ms) / 1000.0
 
     rows = pose_rows(slam.get_trajectory_points())
