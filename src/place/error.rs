@@ -65,6 +65,63 @@ pub enum PlaceError {
         /// What is wrong.
         reason: String,
     },
+    /// A codebook file does not start with the codebook magic bytes.
+    #[error("{path} is not a VLAD codebook (bad magic bytes)")]
+    BadMagic {
+        /// The file.
+        path: PathBuf,
+    },
+    /// A codebook file has a format version this build cannot read.
+    #[error(
+        "{path}: codebook format version {version} is not supported (this build reads {supported})"
+    )]
+    UnsupportedVersion {
+        /// The file.
+        path: PathBuf,
+        /// The version in the file.
+        version: u32,
+        /// The version this build reads.
+        supported: u32,
+    },
+    /// A codebook file is shorter or longer than its header says.
+    #[error("{path}: codebook file holds {actual} bytes; its header needs {expected}")]
+    WrongLength {
+        /// The file.
+        path: PathBuf,
+        /// Bytes the header implies (0 when even the header is incomplete).
+        expected: u64,
+        /// Bytes in the file.
+        actual: u64,
+    },
+    /// A codebook header field is out of range (k or the dimension is 0,
+    /// the whitening is larger than the descriptor).
+    #[error("{path}: invalid codebook header: {reason}")]
+    BadHeader {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
+    /// A codebook's payload does not match its checksum (the file is corrupt).
+    #[error("{path}: codebook checksum mismatch (stored {stored:#010x}, computed {computed:#010x}); the file is corrupt")]
+    Checksum {
+        /// The file.
+        path: PathBuf,
+        /// The CRC-32 stored in the file.
+        stored: u32,
+        /// The CRC-32 of the bytes read.
+        computed: u32,
+    },
+    /// A codebook was trained for other extractor settings than those in use.
+    #[error("{path} was trained for extractor settings {found:#018x}, but the extractor in use has settings {expected:#018x}; retrain it with `spslam vocab train --format vlad` and the same extractor options")]
+    CodebookMismatch {
+        /// The settings hash of the extractor in use.
+        expected: u64,
+        /// The settings hash stored in the codebook.
+        found: u64,
+        /// The codebook file.
+        path: PathBuf,
+    },
 }
 
 impl PlaceError {

@@ -2,6 +2,7 @@
 
 mod eval;
 mod extract;
+mod loops;
 mod run;
 mod synth;
 mod vocab;
@@ -29,8 +30,11 @@ enum Command {
     Run(run::RunArgs),
     /// Write a synthetic stereo/RGB-D sequence with exact ground truth (KITTI layout).
     Synth(synth::SynthArgs),
-    /// Place-recognition vocabularies: `spslam vocab train` trains a DBoW2 vocabulary.
+    /// Place-recognition vocabularies: `spslam vocab train` trains a DBoW2
+    /// vocabulary or a VLAD codebook.
     Vocab(vocab::VocabArgs),
+    /// Find revisited places in a folder of images (VLAD + fundamental-matrix RANSAC).
+    Loops(loops::LoopsArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -63,6 +67,7 @@ fn main() -> std::process::ExitCode {
         Command::Synth(args) => synth::run_synth(args).map(success),
         Command::Run(args) => run::run_slam(args),
         Command::Vocab(args) => vocab::run_vocab(args).map(success),
+        Command::Loops(args) => loops::run_loops(args).map(success),
     };
     match result {
         Ok(code) => code,

@@ -1,11 +1,14 @@
 //! `spslam vocab`: place-recognition vocabularies. `spslam vocab train`
-//! extracts descriptors from folders of images and trains a DBoW2
-//! vocabulary tree on them (hierarchical k-means, TF-IDF weights), written
-//! in the text format ORB-SLAM3's `loadFromTextFile` reads.
+//! extracts descriptors from folders of images and trains, with the same
+//! k-means, either a DBoW2 vocabulary tree (hierarchical k-means, TF-IDF
+//! weights) written in the text format ORB-SLAM3's `loadFromTextFile`
+//! reads, or a VLAD codebook (`--format vlad`: k centres, optional PCA
+//! whitening, the extractor settings' hash).
 
 mod descriptors;
-mod images;
+pub mod images;
 mod train;
+mod vlad;
 
 use std::path::PathBuf;
 
@@ -21,7 +24,7 @@ pub struct VocabArgs {
 
 #[derive(clap::Subcommand)]
 enum VocabCommand {
-    /// Train a vocabulary from folders of images and write it (DBoW2 text format).
+    /// Train a vocabulary (DBoW2 text format) or a VLAD codebook from folders of images.
     Train(TrainArgs),
 }
 
@@ -31,6 +34,7 @@ pub enum VocabFormat {
     // No doc comments on the variants: clap would turn them into a long
     // list of possible values in `--help`.
     Dbow2,
+    Vlad,
 }
 
 /// `--descriptors`: what the vocabulary is trained on.
@@ -52,13 +56,20 @@ pub struct TrainArgs {
     #[arg(long)]
     out: PathBuf,
     /// Output format: dbow2 (DBoW2's text vocabulary, header `k L 0 0`:
-    /// L1-norm scoring, TF-IDF weighting).
+    /// L1-norm scoring, TF-IDF weighting), or vlad (a VLAD codebook for
+    /// `spslam loops`: k k-means centres of SuperPoint's float descriptors,
+    /// tied to the extractor settings; `spslam run`'s extractor defaults).
     #[arg(long, value_enum, default_value_t = VocabFormat::Dbow2)]
     format: VocabFormat,
-    /// Branching factor k, 2..=20 (ORB-SLAM3's loader accepts at most 20).
-    #[arg(long, default_value_t = 10)]
-    k: usize,
-    /// Depth L, 1..=10 (ORB-SLAM3's loader accepts at most 10).
+    /// dbow2: branching factor, 2..=20 (ORB-SLAM3's loader accepts at most
+    /// 20) [default: 10]. vlad: codebook size [default: 64].
+    #[arg(long)]
+    k: Option<usize>,
+    /// vlad only: PCA-whiten the VLAD to this many values, fitted on the
+    /// training images' VLADs (at most the number of images − 1).
+    #[arg(long)]
+    pca: Option<usize>,
+    /// dbow2 only: depth L, 1..=10 (ORB-SLAM3's loader accepts at most 10).
     #[arg(long, default_value_t = 6)]
     depth: usize,
     /// Descriptors to train on: float (SuperPoint's 256 floats, L2),

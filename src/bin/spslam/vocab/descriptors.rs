@@ -11,14 +11,12 @@ use spslam::features::{
     Precision, SuperPointExtractor,
 };
 use spslam::place::DescriptorRows;
-use spslam::settings::SlamSettings;
+use spslam::settings::{ExtractorSettings, SlamSettings, DEFAULT_SUPERPOINT_LEVELS};
 
 use super::{DescriptorChoice, TrainArgs};
 
 /// Keypoints per image without `--settings` or `--features` (as `spslam extract`).
 const DEFAULT_FEATURES: usize = 1000;
-/// SuperPoint's pyramid levels without `--settings` or `--pyramid-levels` (as `spslam extract`).
-const DEFAULT_SUPERPOINT_LEVELS: usize = 1;
 
 /// Every training image's descriptors, one image after the other.
 pub enum TrainingRows {
@@ -100,6 +98,29 @@ pub fn extractor(args: &TrainArgs) -> Result<Box<dyn FeatureExtractor>> {
     Ok(Box::new(
         SuperPointExtractor::new(config).context("cannot create the SuperPoint extractor")?,
     ))
+}
+
+/// The SuperPoint configuration of `spslam run` for the arguments (for
+/// `--format vlad`): with `--settings`, that file's extractor as `spslam run`
+/// reads it (`SuperPoint.nLevels`, `SuperPoint.precision`, ...); without,
+/// `spslam run`'s defaults ([`ExtractorSettings::default`] on
+/// [`DEFAULT_SUPERPOINT_LEVELS`] levels), with `--features`,
+/// `--pyramid-levels`, `--precision` and `--device` applied.
+pub fn run_superpoint_config(args: &TrainArgs) -> Result<ExtractorConfig> {
+    let mut e = match &args.settings {
+        Some(path) => SlamSettings::from_file(path)?.extractor,
+        None => ExtractorSettings::default(),
+    };
+    if let Some(n) = args.features {
+        e.n_features = n;
+    }
+    if let Some(p) = args.precision {
+        e.precision = p;
+    }
+    e.device = args.device;
+    let levels = args.pyramid_levels.unwrap_or(e.superpoint_levels);
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    Ok(e.superpoint_config(levels, cores))
 }
 
 /// Runs `extractor` over `paths`, with a progress bar, keeping the rows

@@ -15,6 +15,9 @@ use super::descriptors::{extract_all, extractor, TrainingRows};
 use super::images::{list_images, subsample};
 use super::{TrainArgs, VocabFormat};
 
+/// dbow2's branching factor without `--k`.
+const DEFAULT_DBOW2_K: usize = 10;
+
 /// What clustering and writing produced, for the summary.
 struct Trained {
     nodes: usize,
@@ -26,23 +29,36 @@ struct Trained {
     write_s: f64,
 }
 
-/// Runs `spslam vocab train`.
-pub fn run_train(args: TrainArgs) -> Result<()> {
-    let started = Instant::now();
-    let params = TreeParams {
-        seed: args.seed,
-        ..TreeParams::new(args.k, args.depth)
-    };
-    params.validate()?;
-    if let Some(dir) = args.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+/// Checks that `--out`'s folder exists.
+pub fn check_out_dir(out: &Path) -> Result<()> {
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         if !dir.is_dir() {
             bail!(
                 "the output folder {} does not exist (for --out {})",
                 dir.display(),
-                args.out.display()
+                out.display()
             );
         }
     }
+    Ok(())
+}
+
+/// Runs `spslam vocab train`.
+pub fn run_train(args: TrainArgs) -> Result<()> {
+    if args.format == VocabFormat::Vlad {
+        return super::vlad::run_train_vlad(args);
+    }
+    if args.pca.is_some() {
+        bail!("--pca applies to --format vlad only");
+    }
+    let started = Instant::now();
+    let k = args.k.unwrap_or(DEFAULT_DBOW2_K);
+    let params = TreeParams {
+        seed: args.seed,
+        ..TreeParams::new(k, args.depth)
+    };
+    params.validate()?;
+    check_out_dir(&args.out)?;
     let paths = subsample(list_images(&args.images)?, args.max_images)?;
     let mut extractor = extractor(&args)?;
     let set = extract_all(extractor.as_mut(), args.descriptors, &paths)?;
@@ -76,7 +92,7 @@ pub fn run_train(args: TrainArgs) -> Result<()> {
     println!(
         "wrote {} (DBoW2 text, k = {}, L = {})",
         args.out.display(),
-        args.k,
+        k,
         args.depth
     );
     println!("  extractor: {}", set.extractor);
@@ -126,6 +142,7 @@ where
     let started = Instant::now();
     let bytes = match args.format {
         VocabFormat::Dbow2 => write(&outcome.tree, &args.out)?,
+        VocabFormat::Vlad => bail!("a VLAD codebook is not a vocabulary tree"),
     };
     Ok(Trained {
         nodes: outcome.tree.node_count(),

@@ -1,0 +1,212 @@
+//! `spslam loops` end to end on the shared data: the EuRoC loop pair is
+//! found among unrelated KITTI frames, the excerpts without revisits give no
+//! loop, and bad input fails with a message naming it. Also
+//! `spslam vocab train --format vlad`.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use spslam::features::ExtractorConfig;
+use spslam::place::{extractor_settings_hash, Codebook, GlobalDescriptor};
+use spslam::settings::{ExtractorSettings, DEFAULT_SUPERPOINT_LEVELS};
+
+fn spslam() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_spslam"))
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("spslam-cli-loops-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn assert_success(out: &Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// Runs `spslam loops` on `dir` and returns (stdout, the JSON report).
+fn loops(dir: &Path, extra: &[&str]) -> (String, serde_json::Value) {
+    let json = dir.with_extension("json");
+    let out = spslam()
+        .args(["loops", "--images"])
+        .arg(dir)
+        .arg("--json")
+        .arg(&json)
+        .args(extra)
+        .output()
+        .unwrap();
+    let stdout = assert_success(&out);
+    let text = std::fs::read_to_string(&json).unwrap();
+    (stdout, serde_json::from_str(&text).unwrap())
+}
+
+/// Every accepted match as (query image, matched image, score, inliers).
+fn accepted(report: &serde_json::Value) -> Vec<(String, String, f64, u64)> {
+    let mut all = Vec::new();
+    for image in report["images"].as_array().unwrap() {
+        for m in image["matches"].as_array().unwrap() {
+            all.push((
+                image["image"].as_str().unwrap().to_string(),
+                m["image"].as_str().unwrap().to_string(),
+                m["score"].as_f64().unwrap(),
+                m["inliers"].as_u64().unwrap(),
+            ));
+        }
+    }
+    all
+}
+
+fn link(from: &Path, to: &Path) {
+    #[cfg(unix)]
+    std::os::unix::fs::symlink(from, to).unwrap();
+    #[cfg(not(unix))]
+    std::fs::copy(from, to).unwrap();
+}
+
+/// The data and the model, or `None` (skipped, or a failure under CI).
+fn data(test: &str) -> Option<PathBuf> {
+    let root = common::data_dir(test)?;
+    if !common::model_available(test) {
+        return None;
+    }
+    let pairs = root.join("euroc/V1_01_easy_loop_pairs/pairs.txt");
+    let euroc = root.join("euroc/V1_01_easy_first95/mav0/cam0/data");
+    if !pairs.is_file() || !euroc.is_dir() {
+        common::missing(test, "the EuRoC loop pairs and excerpt");
+        return None;
+    }
+    Some(root)
+}
+
+#[test]
+fn finds_the_euroc_loop_pair_among_unrelated_frames() {
+    let Some(root) = data("finds_the_euroc_loop_pair_among_unrelated_frames") else {
+        return;
+    };
+    let pairs = root.join("euroc/V1_01_easy_loop_pairs");
+    let dir = temp_dir("pair");
+    // match1, 12 KITTI frames, query1 (98 s later, same place), then
+    // match2 and query2 (0.5 s apart: not a loop).
+    link(&pairs.join("left_img_0.png"), &dir.join("00_match1.png"));
+    for i in 0..12 {
+        let name = format!("{:06}.png", i * 4);
+        link(
+            &root.join("kitti/sequences/06/image_0").join(&name),
+            &dir.join(format!("{:02}_kitti_{name}", i + 1)),
+        );
+    }
+    link(&pairs.join("left_img_1.png"), &dir.join("13_query1.png"));
+    link(&pairs.join("left_img_2.png"), &dir.join("14_match2.png"));
+    link(&pairs.join("left_img_3.png"), &dir.join("15_query2.png"));
+    let (stdout, report) = loops(&dir, &[]);
+    println!("{stdout}");
+    assert_eq!(report["images"].as_array().unwrap().len(), 16);
+    let found = accepted(&report);
+    assert_eq!(found.len(), 1, "exactly the true loop: {found:?}");
+    let (query, matched, score, inliers) = &found[0];
+    assert_eq!(
+        (query.as_str(), matched.as_str()),
+        ("13_query1.png", "00_match1.png")
+    );
+    assert!(*score > 0.0 && *score <= 1.0 && *inliers >= 60, "{found:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn no_loops_on_the_excerpts_without_revisits() {
+    let Some(root) = data("no_loops_on_the_excerpts_without_revisits") else {
+        return;
+    };
+    // All 51 KITTI 06 left frames and all 95 EuRoC V1_01 excerpt frames.
+    for dir in [
+        root.join("kitti/sequences/06/image_0"),
+        root.join("euroc/V1_01_easy_first95/mav0/cam0/data"),
+    ] {
+        let json_dir = temp_dir("excerpt");
+        let json = json_dir.join("loops.json");
+        let out = spslam()
+            .args(["loops", "--images"])
+            .arg(&dir)
+            .arg("--json")
+            .arg(&json)
+            .output()
+            .unwrap();
+        let stdout = assert_success(&out);
+        println!("{stdout}");
+        let report: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        assert!(report["images"].as_array().unwrap().len() >= 51);
+        assert_eq!(accepted(&report), vec![], "{}", dir.display());
+        std::fs::remove_dir_all(&json_dir).unwrap();
+    }
+}
+
+#[test]
+fn bad_input_and_a_foreign_codebook_fail_with_a_message() {
+    let Some(root) = data("bad_input_and_a_foreign_codebook_fail_with_a_message") else {
+        return;
+    };
+    let dir = temp_dir("bad");
+    std::fs::write(dir.join("broken.png"), b"not a png").unwrap();
+    let out = spslam()
+        .args(["loops", "--images"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("broken.png"), "{stderr}");
+
+    // A codebook trained with other settings (300 features) is refused.
+    let book = dir.join("small.spvlad");
+    let out = spslam()
+        .args([
+            "vocab", "train", "--format", "vlad", "--k", "4", "--pca", "2",
+        ])
+        .args(["--max-images", "3", "--features", "300", "--images"])
+        .arg(root.join("kitti/sequences/06/image_0"))
+        .arg("--out")
+        .arg(&book)
+        .output()
+        .unwrap();
+    let stdout = assert_success(&out);
+    assert!(stdout.contains("k = 4"), "{stdout}");
+    let codebook = Codebook::load(&book).unwrap();
+    assert_eq!(codebook.vlad.k(), 4);
+    assert_eq!(codebook.vlad.dim(), 2);
+    let settings = ExtractorSettings {
+        n_features: 300,
+        ..ExtractorSettings::default()
+    };
+    let expected: ExtractorConfig = settings.superpoint_config(DEFAULT_SUPERPOINT_LEVELS, 1);
+    assert_eq!(codebook.settings_hash, extractor_settings_hash(&expected));
+
+    std::fs::remove_file(dir.join("broken.png")).unwrap();
+    link(
+        &root.join("kitti/sequences/06/image_0/000000.png"),
+        &dir.join("a.png"),
+    );
+    let out = spslam()
+        .args(["loops", "--images"])
+        .arg(&dir)
+        .arg("--codebook")
+        .arg(&book)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("small.spvlad") && stderr.contains("trained for extractor settings"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
