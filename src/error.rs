@@ -99,6 +99,15 @@ pub enum SlamError {
         /// What happened.
         reason: String,
     },
+    /// Place recognition failed (global descriptor or keyframe database).
+    #[error("place recognition failed ({stage}): {source}")]
+    Place {
+        /// Which step.
+        stage: &'static str,
+        /// What place recognition said.
+        #[source]
+        source: crate::place::PlaceError,
+    },
     /// The extractors were handed to a pipeline thread
     /// ([`StereoSlam::detach_extractors`](crate::system::StereoSlam::detach_extractors)),
     /// so this system only tracks features extracted elsewhere.
@@ -130,6 +139,12 @@ impl<T> MapContext<T> for Result<T, MatchError> {
 impl<T> MapContext<T> for Result<T, OptimError> {
     fn in_stage(self, stage: &'static str) -> Result<T, SlamError> {
         self.map_err(|source| SlamError::Optimisation { stage, source })
+    }
+}
+
+impl<T> MapContext<T> for Result<T, crate::place::PlaceError> {
+    fn in_stage(self, stage: &'static str) -> Result<T, SlamError> {
+        self.map_err(|source| SlamError::Place { stage, source })
     }
 }
 

@@ -17,6 +17,7 @@ pub mod error;
 pub mod eval;
 pub mod features;
 pub mod ffi;
+pub mod loop_closing;
 pub mod map;
 pub mod mapping;
 pub mod matching;

@@ -41,6 +41,9 @@ pub(super) struct CovisibilityNode {
     /// Whether [`Map::update_connections`] has run on it (ORB-SLAM3's
     /// `!mbFirstConnection`): it is in the spanning tree.
     pub(super) connected: bool,
+    /// Keyframes it was joined to by a closed loop (ORB-SLAM3's
+    /// `mspLoopEdges`), kept for the essential graph.
+    pub(super) loop_edges: BTreeSet<KeyFrameId>,
 }
 
 impl CovisibilityNode {
@@ -206,6 +209,24 @@ impl Map {
             .unwrap_or(0)
     }
 
+    /// Joins two keyframes by a loop edge (both directions; ORB-SLAM3's
+    /// `AddLoopEdge`), for the essential graph of later corrections.
+    pub fn add_loop_edge(&mut self, a: KeyFrameId, b: KeyFrameId) {
+        if a == b || !self.keyframes.contains_key(&a) || !self.keyframes.contains_key(&b) {
+            return;
+        }
+        self.covisibility.entry(a).or_default().loop_edges.insert(b);
+        self.covisibility.entry(b).or_default().loop_edges.insert(a);
+    }
+
+    /// The keyframes joined to `keyframe` by loop edges, in id order.
+    pub fn loop_edges(&self, keyframe: KeyFrameId) -> Vec<KeyFrameId> {
+        self.covisibility
+            .get(&keyframe)
+            .map(|n| n.loop_edges.iter().copied().collect())
+            .unwrap_or_default()
+    }
+
     /// The spanning-tree parent.
     pub fn parent(&self, keyframe: KeyFrameId) -> Option<KeyFrameId> {
         self.covisibility.get(&keyframe).and_then(|n| n.parent)
@@ -240,6 +261,26 @@ impl Map {
             p.children.remove(&keyframe);
         }
         let parent = node.parent.or_else(|| self.newest_older_in_tree(keyframe));
+        // Loop edges survive the keyframe: they move to its parent.
+        for other in &node.loop_edges {
+            if let Some(n) = self.covisibility.get_mut(other) {
+                n.loop_edges.remove(&keyframe);
+            }
+        }
+        if let Some(p) = parent {
+            for other in node.loop_edges.iter().filter(|o| **o != p) {
+                self.covisibility
+                    .entry(p)
+                    .or_default()
+                    .loop_edges
+                    .insert(*other);
+                self.covisibility
+                    .entry(*other)
+                    .or_default()
+                    .loop_edges
+                    .insert(p);
+            }
+        }
         let mut orphans: BTreeSet<KeyFrameId> = node.children;
         let mut candidates: BTreeSet<KeyFrameId> = parent.into_iter().collect();
         while !orphans.is_empty() {

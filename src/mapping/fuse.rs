@@ -157,6 +157,21 @@ pub(crate) fn plan_fusion(
     planned
 }
 
+/// Compute: `points` projected into each of `targets` (loop fusion,
+/// ORB-SLAM3's `SearchAndFuse`; read only).
+pub(crate) fn plan_fusion_into(
+    map: &Map,
+    targets: &[KeyFrameId],
+    points: &[MapPointId],
+    rig: &StereoRig,
+) -> Vec<FusionCandidate> {
+    let mut planned = Vec::new();
+    for target in targets {
+        candidates_in(map, *target, points, rig, &mut planned);
+    }
+    planned
+}
+
 /// Apply: a candidate landing on a keypoint with another point fuses the
 /// two (the one with more observations survives, ORB-SLAM3's `Replace`),
 /// one landing on a free keypoint gains the observation. Ids are resolved
@@ -166,6 +181,18 @@ pub(crate) fn plan_fusion(
 pub(crate) fn apply_fusion(
     map: &mut Map,
     keyframe: KeyFrameId,
+    planned: Vec<FusionCandidate>,
+) -> Result<usize, SlamError> {
+    let changed = apply_fusion_candidates(map, planned)?;
+    super::refresh_observed_points(map, keyframe);
+    map.update_connections(keyframe);
+    Ok(changed)
+}
+
+/// [`apply_fusion`] without the refresh of one keyframe (the caller
+/// refreshes what it changed).
+pub(crate) fn apply_fusion_candidates(
+    map: &mut Map,
     planned: Vec<FusionCandidate>,
 ) -> Result<usize, SlamError> {
     let mut changed = 0;
@@ -201,7 +228,5 @@ pub(crate) fn apply_fusion(
             }
         }
     }
-    super::refresh_observed_points(map, keyframe);
-    map.update_connections(keyframe);
     Ok(changed)
 }

@@ -19,6 +19,7 @@ use std::sync::{Arc, RwLockReadGuard, RwLockWriteGuard};
 use std::time::Instant;
 
 pub use bundle::BundleSummary;
+pub(crate) use fuse::{apply_fusion_candidates, plan_fusion_into};
 
 use crate::camera::StereoRig;
 use crate::error::{MapContext, SlamError};
@@ -69,7 +70,7 @@ pub struct MappingStepTimes {
 
 /// Recomputes the descriptor, normal and distances of every point
 /// `keyframe` observes (after it gained or fused observations).
-fn refresh_observed_points(map: &mut Map, keyframe: KeyFrameId) {
+pub(crate) fn refresh_observed_points(map: &mut Map, keyframe: KeyFrameId) {
     let observed: Vec<MapPointId> = map
         .keyframe(keyframe)
         .map(|k| k.observed_points().map(|(_, p)| p).collect())

@@ -43,20 +43,22 @@ pub struct Codebook {
     pub settings_hash: u64,
 }
 
-/// A hash of the [`ExtractorConfig`] fields that change descriptors, so a
-/// codebook is not used with descriptors it was not trained on.
+/// A hash of the [`ExtractorConfig`] fields that change the descriptors'
+/// values, so a codebook is not used with descriptors it was not trained on.
 ///
-/// Hashed (64-bit FNV-1a over a canonical text, `name=value;` per field,
-/// floats in Rust's shortest round-trip form): `n_features`,
-/// `scale_factor`, `n_levels`, `threshold`, `min_threshold`, `nms_radius`,
-/// `border`, `anms`, every `periodic_filter` field, `precision`, and the
-/// file name of `model_path` when one is given (the precision already
-/// picks the default model). Not hashed: `device`, `threads` and the ONNX
-/// Runtime library, which do not change what is computed, and the model
-/// file's contents: hashing a model of several MB on every start is not
-/// cheap, and its path differs between machines.
+/// Hashed (64-bit FNV-1a over the canonical text
+/// `descriptors=superpoint;precision=<P>;model=<file name>;`): the network
+/// precision (int8 and fp32 descriptors differ slightly) and the file name
+/// of `model_path` when one is given (the precision already picks the
+/// default model). Not hashed: what only chooses *which* keypoints are
+/// described (feature count, levels, thresholds, ANMS, the periodic
+/// filter), since VLAD aggregates the descriptors of whatever keypoints a
+/// frame has, so one codebook serves every camera and settings file;
+/// `device`, `threads` and the ONNX Runtime library, which do not change
+/// what is computed; and the model file's contents: hashing a model of
+/// several MB on every start is not cheap, and its path differs between
+/// machines.
 pub fn extractor_settings_hash(config: &ExtractorConfig) -> u64 {
-    let p = &config.periodic_filter;
     let model = config
         .model_path
         .as_ref()
@@ -64,23 +66,8 @@ pub fn extractor_settings_hash(config: &ExtractorConfig) -> u64 {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let text = format!(
-        "n_features={};scale_factor={:?};n_levels={};threshold={:?};min_threshold={:?};\
-         nms_radius={};border={};anms={};periodic.enabled={};periodic.lattice_min_support={};\
-         periodic.min_contrast={:?};periodic.contrast_radius={};precision={:?};model={};",
-        config.n_features,
-        config.scale_factor,
-        config.n_levels,
-        config.threshold,
-        config.min_threshold,
-        config.nms_radius,
-        config.border,
-        config.anms,
-        p.enabled,
-        p.lattice_min_support,
-        p.min_contrast,
-        p.contrast_radius,
-        config.precision,
-        model,
+        "descriptors=superpoint;precision={:?};model={};",
+        config.precision, model,
     );
     fnv1a64(text.as_bytes())
 }
@@ -382,14 +369,27 @@ mod tests {
             ..base.clone()
         };
         assert_eq!(h, extractor_settings_hash(&threads));
+        // Which keypoints are described does not matter to VLAD.
         let features = ExtractorConfig {
             n_features: 999,
+            n_levels: 3,
             ..base.clone()
         };
-        assert_ne!(h, extractor_settings_hash(&features));
-        let mut periodic = base.clone();
-        periodic.periodic_filter.enabled = false;
-        assert_ne!(h, extractor_settings_hash(&periodic));
+        assert_eq!(h, extractor_settings_hash(&features));
+        // What the descriptors are does.
+        let other_precision = ExtractorConfig {
+            precision: match base.precision {
+                crate::features::Precision::Int8 => crate::features::Precision::Fp32,
+                crate::features::Precision::Fp32 => crate::features::Precision::Int8,
+            },
+            ..base.clone()
+        };
+        assert_ne!(h, extractor_settings_hash(&other_precision));
+        let other_model = ExtractorConfig {
+            model_path: Some("other.onnx".into()),
+            ..base.clone()
+        };
+        assert_ne!(h, extractor_settings_hash(&other_model));
     }
 
     proptest! {

@@ -96,6 +96,11 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
         self.ids.len()
     }
 
+    /// The stored keyframes, in storage order.
+    pub fn keyframes(&self) -> impl Iterator<Item = K> + '_ {
+        self.ids.iter().copied()
+    }
+
     /// True when no keyframe is stored.
     pub fn is_empty(&self) -> bool {
         self.ids.is_empty()

@@ -4,18 +4,22 @@
 //!   local mapping (inline or on its [`MappingThread`]) over an [`Atlas`];
 //!   loss is never final: when relocalisation keeps failing, tracking
 //!   starts a new map (see [`crate::tracking::RELOCALISATION_PATIENCE_S`]);
+//!   loop closing checks every keyframe local mapping has processed and
+//!   corrects the map with the loops it accepts (see [`crate::loop_closing`]);
 //! - [`Atlas`]: every map of a run;
 //! - [`FrameRecord`], [`SlamSummary`]: what a run reports.
 //!
-//! Layers: frame → features → tracking → map ← local mapping. This module
+//! Layers: frame → features → tracking → map ← local mapping, loop closing. This module
 //! sits above them all; nothing below imports from it.
 
 mod atlas;
 mod local_mapping_thread;
+mod loop_closing_stage;
 mod records;
 mod stereo_slam;
 
 pub use atlas::{Atlas, AtlasMap, MapIndex};
 pub use local_mapping_thread::{MappingResult, MappingThread};
+pub use loop_closing_stage::{LoopRecord, RejectedLoopRecord};
 pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 pub use stereo_slam::StereoSlam;

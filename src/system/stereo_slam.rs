@@ -5,14 +5,17 @@
 //! through a channel while the next frame is extracted and tracked.
 
 use std::collections::BTreeMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use crate::camera::StereoRig;
 use crate::error::SlamError;
 use crate::features::GrayImageView;
+use crate::loop_closing::LoopThresholds;
 use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
+use crate::place::GlobalDescriptor;
 use crate::tracking::{
     StereoExtractors, StereoFeatures, StereoFrontend, StereoMatcher, Tracker, TrackingMethod,
     TrackingState,
@@ -20,6 +23,7 @@ use crate::tracking::{
 
 use super::atlas::{Atlas, MapIndex};
 use super::local_mapping_thread::{MappingResult, MappingThread};
+use super::loop_closing_stage::{LoopClosingStage, LoopRecord, RejectedLoopRecord};
 use super::records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 
 /// Where local mapping runs.
@@ -37,9 +41,11 @@ enum Mapping {
 /// Stereo SLAM over a sequence of rectified pairs.
 ///
 /// Threads: tracking runs on the caller's thread, local mapping inline or
-/// on its own thread. Loop closing (the next stage) gets its thread here
-/// too, fed by local mapping's processed keyframes as ORB-SLAM3's
-/// `LoopClosing`, and merges atlas maps.
+/// on its own thread. Loop closing ([`Self::enable_loop_closing`]) checks
+/// every keyframe local mapping has processed, as ORB-SLAM3's
+/// `LoopClosing`, on the caller's thread between frames; while it corrects
+/// a loop, local mapping is paused (its queue finished first), as
+/// ORB-SLAM3's `RequestStop`.
 pub struct StereoSlam {
     rig: StereoRig,
     extractors: Option<StereoExtractors>,
@@ -48,6 +54,7 @@ pub struct StereoSlam {
     mapping: Mapping,
     atlas: Atlas,
     records: Vec<FrameRecord>,
+    loop_closing: Option<LoopClosingStage>,
 }
 
 impl StereoSlam {
@@ -62,7 +69,77 @@ impl StereoSlam {
             mapping: Mapping::Inline(LocalMapper::new(rig)),
             atlas: Atlas::new(),
             records: Vec::new(),
+            loop_closing: None,
         }
+    }
+
+    /// Switches loop closing on, with `descriptor` for place recognition
+    /// (a VLAD codebook, see [`crate::place::Codebook`]). Keyframes made
+    /// before this call are not checked.
+    pub fn enable_loop_closing(
+        &mut self,
+        descriptor: Arc<dyn GlobalDescriptor>,
+        thresholds: LoopThresholds,
+    ) -> Result<(), SlamError> {
+        self.loop_closing = Some(LoopClosingStage::new(descriptor, thresholds)?);
+        Ok(())
+    }
+
+    /// The loops accepted and corrected so far.
+    pub fn loops(&self) -> &[LoopRecord] {
+        self.loop_closing.as_ref().map_or(&[], |l| l.loops())
+    }
+
+    /// The loop candidates that passed the descriptor stage and were
+    /// rejected later.
+    pub fn rejected_loops(&self) -> &[RejectedLoopRecord] {
+        self.loop_closing.as_ref().map_or(&[], |l| l.rejected())
+    }
+
+    /// Checks the keyframes local mapping has processed for loops and
+    /// corrects the map with the accepted ones (local mapping paused).
+    fn close_loops(&mut self) -> Result<(), SlamError> {
+        loop {
+            let map = self.atlas.active().map.clone();
+            let Some(stage) = self.loop_closing.as_mut() else {
+                return Ok(());
+            };
+            if !stage.has_queued() {
+                return Ok(());
+            }
+            let Some(accepted) = stage.detect_next(&map, &self.rig)? else {
+                continue;
+            };
+            let paused = self.pause_mapping()?;
+            if let Some(stage) = self.loop_closing.as_mut() {
+                stage.correct(&map, &accepted, &self.rig)?;
+            }
+            if let Some(mapper) = paused {
+                let thread = MappingThread::spawn(mapper, map)?;
+                let waiting = BTreeMap::new();
+                self.mapping = Mapping::Thread { thread, waiting };
+            }
+        }
+    }
+
+    /// Stops the local-mapping thread after its queue (its results are
+    /// filed) and returns its mapper; `None` when mapping runs inline.
+    fn pause_mapping(&mut self) -> Result<Option<LocalMapper>, SlamError> {
+        let Mapping::Thread { .. } = self.mapping else {
+            return Ok(None);
+        };
+        let placeholder = Mapping::Inline(LocalMapper::new(self.rig));
+        let Mapping::Thread {
+            thread,
+            mut waiting,
+        } = std::mem::replace(&mut self.mapping, placeholder)
+        else {
+            return Ok(None);
+        };
+        let (mapper, results) = thread.finish()?;
+        self.attach(results, &mut waiting)?;
+        // The records of keyframes still waiting were filed by `attach`.
+        Ok(Some(mapper))
     }
 
     /// The active map.
@@ -134,6 +211,9 @@ impl StereoSlam {
         self.atlas = Atlas::new();
         self.tracker = Tracker::new(self.rig);
         self.records.clear();
+        if let Some(stage) = self.loop_closing.as_mut() {
+            stage.new_map()?;
+        }
         if threaded {
             self.spawn_mapping_thread()?;
         }
@@ -156,7 +236,8 @@ impl StereoSlam {
         };
         let (mapper, results) = thread.finish()?;
         self.mapping = Mapping::Inline(mapper);
-        self.attach(results, &mut waiting)
+        self.attach(results, &mut waiting)?;
+        self.close_loops()
     }
 
     /// Files local mapping's results under the frames that made the keyframes.
@@ -167,6 +248,9 @@ impl StereoSlam {
     ) -> Result<(), SlamError> {
         for result in results {
             let summary = result.summary?;
+            if let Some(stage) = self.loop_closing.as_mut() {
+                stage.push(result.keyframe);
+            }
             if let Some(record) = waiting
                 .remove(&result.keyframe)
                 .and_then(|i| self.records.get_mut(i))
@@ -188,7 +272,8 @@ impl StereoSlam {
         if let Mapping::Thread { waiting: w, .. } = &mut self.mapping {
             *w = waiting;
         }
-        attached
+        attached?;
+        self.close_loops()
     }
 
     /// Gives the active map up and starts a new one from frame `index`:
@@ -201,6 +286,9 @@ impl StereoSlam {
             *mapper = mapper.fresh();
         }
         let new_map = self.atlas.start_new_map(index);
+        if let Some(stage) = self.loop_closing.as_mut() {
+            stage.new_map()?;
+        }
         tracing::info!(
             frame = index,
             map = new_map,
@@ -305,6 +393,9 @@ impl StereoSlam {
             match &mut self.mapping {
                 Mapping::Inline(mapper) => {
                     mapping = Some(mapper.process_keyframe(&map, *kf, created, &|| false)?);
+                    if let Some(stage) = self.loop_closing.as_mut() {
+                        stage.push(*kf);
+                    }
                 }
                 Mapping::Thread { thread, waiting } => {
                     thread.submit(*kf, created.clone())?;
@@ -336,6 +427,9 @@ impl StereoSlam {
             },
             mapping,
         });
+        if matches!(self.mapping, Mapping::Inline(_)) {
+            self.close_loops()?;
+        }
         let last = self.records.len() - 1;
         Ok(&self.records[last])
     }

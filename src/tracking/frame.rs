@@ -3,7 +3,7 @@
 
 use crate::features::pyramid::{level_to_base_offset, ScaleTables};
 use crate::features::FrameFeatures;
-use crate::map::{FrameMeasurements, KeyFrameId, MapPointId, StereoMeasurement};
+use crate::map::{FrameMeasurements, KeyFrame, KeyFrameId, MapPointId, StereoMeasurement};
 use crate::matching::KeypointGrid;
 use crate::optim::{LieGroup, Se3};
 
@@ -72,6 +72,28 @@ impl Frame {
             map_points: vec![None; n],
             pose_cw: Se3::identity(),
             reference_keyframe: None,
+        }
+    }
+
+    /// A keyframe seen again as a frame (loop verification): its keypoints
+    /// (already pixel-centre-exact), descriptors, stereo matches, map points
+    /// and pose.
+    pub fn from_keyframe(kf: &KeyFrame, rig: &StereoRig) -> Self {
+        let m = &kf.measurements;
+        Self {
+            index: kf.frame_index,
+            timestamp: kf.timestamp,
+            features: FrameFeatures {
+                keypoints: m.keypoints.clone(),
+                descriptors: m.descriptors.clone(),
+                timings: Default::default(),
+            },
+            stereo: m.stereo.clone(),
+            scales: m.scales.clone(),
+            grid: KeypointGrid::new(&m.keypoints, rig.width, rig.height),
+            map_points: kf.map_points().to_vec(),
+            pose_cw: kf.pose_cw(),
+            reference_keyframe: Some(kf.id()),
         }
     }
 

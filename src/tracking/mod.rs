@@ -26,7 +26,10 @@ pub use frame::Frame;
 pub use frontend::{StereoExtractors, StereoFeatures, StereoFrontend, StereoMatcher};
 pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use motion::MOTION_MODEL_RADIUS;
+pub(crate) use pose::refine_pose;
+pub(crate) use relocalise::pnp_ransac;
 pub use relocalise::MIN_RELOCALISATION_INLIERS;
+pub(crate) use search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
 pub use tracker::{
     TrackOutcome, Tracker, TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S,
 };

@@ -136,7 +136,7 @@ pub(crate) fn track_reference_keyframe(
         if let Some(pose) = pnp_ransac(frame, map, &matches, rig)? {
             let (kept_pose, kept_points) = (frame.pose_cw, frame.map_points.clone());
             assign(frame);
-            frame.pose_cw = pose;
+            frame.pose_cw = pose.pose_cw;
             let from_pnp = refine_pose(frame, map, rig)?;
             tracing::debug!(
                 frame = frame.index,

@@ -22,14 +22,24 @@ const MAX_CANDIDATES: usize = 30;
 /// Inliers needed to accept a relocalisation (ORB-SLAM3: 50).
 pub const MIN_RELOCALISATION_INLIERS: usize = 50;
 
+/// A RANSAC pose and how many matches agree with it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PnpPose {
+    /// The frame's pose `T_cw`.
+    pub pose_cw: Se3,
+    /// RANSAC inliers.
+    pub inliers: usize,
+}
+
 /// A pose from 3-D/2-D matches by OpenCV's `solvePnPRansac` (EPnP inside
-/// RANSAC, 4 px threshold at level 0); `None` when it fails.
+/// RANSAC, 4 px threshold at level 0); `None` when it fails or fewer than
+/// 10 matches agree.
 pub(crate) fn pnp_ransac(
     frame: &Frame,
     map: &Map,
     matches: &[(usize, MapPointId)],
     rig: &StereoRig,
-) -> Result<Option<Se3>, SlamError> {
+) -> Result<Option<PnpPose>, SlamError> {
     let mut object = Vector::<Point3f>::new();
     let mut image = Vector::<Point2f>::new();
     for (i, id) in matches {
@@ -74,7 +84,10 @@ pub(crate) fn pnp_ransac(
     let axis = Vector3::new(r(&rvec, 0)?, r(&rvec, 1)?, r(&rvec, 2)?);
     let t = Vector3::new(r(&tvec, 0)?, r(&tvec, 1)?, r(&tvec, 2)?);
     let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::new(axis));
-    Ok(Some(Se3::new(rotation, t)))
+    Ok(Some(PnpPose {
+        pose_cw: Se3::new(rotation, t),
+        inliers: inliers.len(),
+    }))
 }
 
 /// Searches the keyframe's points not yet matched around their projections
@@ -143,7 +156,7 @@ pub(crate) fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Resul
             );
             continue;
         };
-        frame.pose_cw = pose;
+        frame.pose_cw = pose.pose_cw;
         frame.map_points.iter_mut().for_each(|p| *p = None);
         for (i, p) in &matches {
             frame.map_points[*i] = Some(*p);

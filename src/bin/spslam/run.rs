@@ -19,6 +19,7 @@ mod source;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -27,6 +28,8 @@ use spslam::dataset::StereoFrame;
 use spslam::features::{
     AnmsMethod, Device, FeatureExtractor, OrbConfig, OrbExtractor, Precision, SuperPointExtractor,
 };
+use spslam::loop_closing::LoopThresholds;
+use spslam::place::{default_codebook_path, Codebook};
 use spslam::settings::SlamSettings;
 use spslam::system::StereoSlam;
 use spslam::tracking::StereoFrontend;
@@ -98,6 +101,13 @@ pub struct RunArgs {
     /// instead of on its own thread.
     #[arg(long)]
     inline_mapping: bool,
+    /// Do not close loops (loop closing is on by default with SuperPoint;
+    /// ORB's binary descriptors have no VLAD codebook, so ORB runs never close loops).
+    #[arg(long)]
+    no_loop_closing: bool,
+    /// The VLAD codebook for loop closing [default: SPSLAM_CODEBOOK, else models/vlad_k64.spvlad].
+    #[arg(long)]
+    codebook: Option<PathBuf>,
     /// Stop at the first frame that cannot be read instead of skipping it
     /// (the frames before it are still written; exit code 2).
     #[arg(long)]
@@ -186,6 +196,18 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     if let Some(mapper) = slam.mapper_mut() {
         mapper.bundle_adjustment = !args.no_local_ba;
         mapper.keyframe_culling = !args.no_keyframe_culling;
+    }
+    if !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint {
+        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+        let config = settings.extractor.superpoint_config(levels, cores / 2);
+        let path = args.codebook.clone().unwrap_or_else(default_codebook_path);
+        let codebook = Codebook::load_for(&path, &config).with_context(|| {
+            format!(
+                "cannot use the loop-closing codebook {} (train one with `spslam vocab train --format vlad`, or run with --no-loop-closing)",
+                path.display()
+            )
+        })?;
+        slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default())?;
     }
     if !args.inline_mapping {
         slam.spawn_mapping_thread()?;

@@ -8,7 +8,7 @@ use anyhow::{anyhow, Context, Result};
 use spslam::eval::{write_kitti, write_tum, EvalReport, Trajectory};
 use spslam::optim::Se3;
 use spslam::settings::SlamSettings;
-use spslam::system::{FrameRecord, SlamSummary, StereoSlam};
+use spslam::system::{FrameRecord, LoopRecord, RejectedLoopRecord, SlamSummary, StereoSlam};
 
 use super::evaluation::{evaluate_run, Drift};
 use super::frame_loop::{RunEnd, UnreadableFrame};
@@ -61,6 +61,12 @@ struct RunReport<'a> {
     evaluation: Option<&'a EvalReport>,
     /// Final-position drift (KITTI-layout runs with ground truth).
     drift: Option<Drift>,
+    /// Loops accepted and corrected: query and match input frames,
+    /// inliers, the correction's size.
+    loops: &'a [LoopRecord],
+    /// Loop candidates that passed the descriptor stage and were rejected
+    /// later, with the stage and the count reached there.
+    rejected_loops: &'a [RejectedLoopRecord],
     frames: &'a [FrameRecord],
 }
 
@@ -88,6 +94,35 @@ fn status_line(end: &RunEnd, processed: usize, total: usize, unreadable: usize) 
             "run INCOMPLETE (failed: {error}): {processed} of {total} frames processed{skipped}; the outputs cover those\n"
         ),
     }
+}
+
+/// One line per accepted loop, and the rejected candidates' count by stage.
+fn loops_text(loops: &[LoopRecord], rejected: &[RejectedLoopRecord]) -> String {
+    let mut text = format!(
+        "loops closed: {}; candidates rejected after the descriptor stage: {}\n",
+        loops.len(),
+        rejected.len()
+    );
+    for l in loops {
+        text.push_str(&format!(
+            "loop: frame {} -> frame {}, {} inliers, {} confirmations, correction {:.3} m / {:.2} deg, essential graph {} edges in {:.1} ms\n",
+            l.query_frame,
+            l.match_frame,
+            l.inliers,
+            l.confirmations,
+            l.correction_m,
+            l.correction_deg,
+            l.correction.graph_edges,
+            l.correction.graph_ms
+        ));
+    }
+    for r in rejected {
+        text.push_str(&format!(
+            "rejected loop candidate: frame {} -> frame {} (score {:.3}) at {:?} ({})\n",
+            r.query_frame, r.candidate_frame, r.score, r.stage, r.count
+        ));
+    }
+    text
 }
 
 /// The totals, the mean timings and one line per atlas map.
@@ -188,6 +223,7 @@ impl RunOutputs<'_> {
                 None
             }
         };
+        text.push_str(&loops_text(slam.loops(), slam.rejected_loops()));
         for u in unreadable {
             text.push_str(&format!(
                 "unreadable frame {} (skipped, counted as lost): {}: {}\n",
@@ -228,6 +264,8 @@ impl RunOutputs<'_> {
             summary: summary.as_ref(),
             evaluation: evaluation.as_ref(),
             drift,
+            loops: slam.loops(),
+            rejected_loops: slam.rejected_loops(),
             frames: records,
         };
         keep(self.write_json(&report), &mut problems);

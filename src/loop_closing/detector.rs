@@ -1,0 +1,349 @@
+//! Loop detection over a map's keyframes, one keyframe at a time, as
+//! ORB-SLAM3's `LoopClosing::NewDetectCommonRegions` (stereo: SE3):
+//!
+//! 1. the keyframe's global descriptor queries the keyframe database,
+//!    excluding its covisible keyframes and theirs;
+//! 2. each candidate gets the multi-stage check of [`verify_candidate`];
+//! 3. the first verified candidate gives a correction `C` (the keyframe's
+//!    pose moves from `T_qw` to `T_qw·C`); it must be confirmed by
+//!    [`LoopThresholds::confirmations`] keyframes in all: the detecting one,
+//!    its covisible keyframes moved by `C`, and, while it is pending, the
+//!    next keyframes (up to [`LoopThresholds::max_misses`] may fail);
+//! 4. the keyframe is inserted into the database.
+//!
+//! Read only on the map: the caller corrects the map with the accepted loop.
+
+use std::collections::HashSet;
+use std::sync::Arc;
+
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
+use crate::features::DescriptorSet;
+use crate::map::{KeyFrameId, Map, MapPointId};
+use crate::optim::{LieGroup, Se3};
+use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
+
+use super::thresholds::LoopThresholds;
+use super::verify::{candidate_group, confirm_with, verify_candidate, LoopStage, Verification};
+
+/// A loop the detector accepted: the query keyframe's pose in the loop's
+/// frame and its matches with the loop group.
+#[derive(Debug, Clone)]
+pub struct AcceptedLoop {
+    /// The keyframe whose check accepted it (the last confirmer).
+    pub query: KeyFrameId,
+    /// The loop keyframe (the verified candidate).
+    pub candidate: KeyFrameId,
+    /// The candidate and its covisible keyframes.
+    pub group: Vec<KeyFrameId>,
+    /// The query's corrected pose `T_cw`.
+    pub pose_cw: Se3,
+    /// Per query keypoint: the group's point matched to it.
+    pub matches: Vec<Option<MapPointId>>,
+    /// Inliers of the query's last optimisation.
+    pub inliers: usize,
+    /// Keyframes that agreed, the detecting one included.
+    pub confirmations: usize,
+}
+
+/// A candidate that passed the descriptor stage and failed later.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RejectedCandidate {
+    /// The keyframe that looked for a loop.
+    pub query: KeyFrameId,
+    /// The candidate.
+    pub candidate: KeyFrameId,
+    /// Its cosine similarity with the query.
+    pub score: f32,
+    /// Where it failed.
+    pub stage: LoopStage,
+    /// The count reached at that stage (matches, inliers or confirmations).
+    pub count: usize,
+}
+
+/// What one keyframe's detection found.
+#[derive(Debug, Clone, Default)]
+pub struct DetectionOutcome {
+    /// The loop to correct now, if any.
+    pub accepted: Option<AcceptedLoop>,
+    /// Candidates rejected after the descriptor stage.
+    pub rejected: Vec<RejectedCandidate>,
+}
+
+/// A verified loop waiting for confirmations.
+#[derive(Debug, Clone)]
+struct PendingLoop {
+    candidate: KeyFrameId,
+    score: f32,
+    query: KeyFrameId,
+    group: Vec<KeyFrameId>,
+    group_points: Vec<MapPointId>,
+    correction: Se3,
+    confirmations: usize,
+    misses: usize,
+}
+
+/// The detector's state: the database and a pending loop.
+pub struct LoopDetector {
+    descriptor: Arc<dyn GlobalDescriptor>,
+    database: KeyframeDatabase<KeyFrameId>,
+    thresholds: LoopThresholds,
+    pending: Option<PendingLoop>,
+}
+
+impl std::fmt::Debug for LoopDetector {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LoopDetector")
+            .field("keyframes", &self.database.len())
+            .field("thresholds", &self.thresholds)
+            .field("pending", &self.pending.is_some())
+            .finish()
+    }
+}
+
+/// The float rows of a keyframe, when it has float descriptors.
+fn float_rows(descriptors: &DescriptorSet) -> Option<&[f32]> {
+    match descriptors {
+        DescriptorSet::Float { data, .. } if !data.is_empty() => Some(data),
+        _ => None,
+    }
+}
+
+impl LoopDetector {
+    /// A detector with an empty database.
+    pub fn new(
+        descriptor: Arc<dyn GlobalDescriptor>,
+        thresholds: LoopThresholds,
+    ) -> Result<Self, SlamError> {
+        let database = KeyframeDatabase::new(descriptor.dim()).in_stage("keyframe database")?;
+        Ok(Self {
+            descriptor,
+            database,
+            thresholds,
+            pending: None,
+        })
+    }
+
+    /// The thresholds.
+    pub fn thresholds(&self) -> &LoopThresholds {
+        &self.thresholds
+    }
+
+    /// Keyframes in the database.
+    pub fn database_len(&self) -> usize {
+        self.database.len()
+    }
+
+    /// Forgets every keyframe and the pending loop (a new map).
+    pub fn clear(&mut self) -> Result<(), SlamError> {
+        self.database =
+            KeyframeDatabase::new(self.descriptor.dim()).in_stage("keyframe database")?;
+        self.pending = None;
+        Ok(())
+    }
+
+    /// The global descriptor of a keyframe; `None` without float rows
+    /// (binary descriptors: no VLAD codebook applies).
+    pub fn describe(&self, map: &Map, kf: KeyFrameId) -> Result<Option<Vec<f32>>, SlamError> {
+        let Ok(keyframe) = map.keyframe(kf) else {
+            return Ok(None);
+        };
+        let Some(rows) = float_rows(&keyframe.measurements.descriptors) else {
+            return Ok(None);
+        };
+        if rows.len() % self.descriptor.local_dim() != 0 {
+            return Ok(None);
+        }
+        self.descriptor
+            .compute_flat(rows)
+            .map(Some)
+            .in_stage("global descriptor")
+    }
+
+    /// The database's best candidates for a global descriptor, excluding
+    /// `exclude` (relocalisation uses this too).
+    pub fn candidates(
+        &self,
+        map: &Map,
+        descriptor: &[f32],
+        exclude: &HashSet<KeyFrameId>,
+        n_best: usize,
+    ) -> Result<Vec<(KeyFrameId, f32)>, SlamError> {
+        let options = QueryOptions {
+            n_best,
+            group_size: self.thresholds.group_size,
+            ..QueryOptions::default()
+        };
+        Ok(self
+            .database
+            .query(descriptor, exclude, |k| map.best_covisible(k, 10), &options)
+            .in_stage("keyframe database query")?
+            .into_iter()
+            .map(|c| (c.keyframe, c.score))
+            .collect())
+    }
+
+    /// Drops culled keyframes from the database.
+    fn forget_culled(&mut self, map: &Map) {
+        let gone: Vec<KeyFrameId> = self
+            .database
+            .keyframes()
+            .filter(|k| map.keyframe(*k).is_err())
+            .collect();
+        for k in gone {
+            self.database.erase(k);
+        }
+    }
+
+    /// Looks for a loop at keyframe `kf` (see the module's docs) and adds
+    /// it to the database.
+    pub fn process(
+        &mut self,
+        map: &Map,
+        kf: KeyFrameId,
+        rig: &StereoRig,
+    ) -> Result<DetectionOutcome, SlamError> {
+        self.forget_culled(map);
+        let mut outcome = DetectionOutcome::default();
+        let Some(descriptor) = self.describe(map, kf)? else {
+            return Ok(outcome);
+        };
+        if self.pending.is_some() {
+            outcome.accepted = self.confirm_pending(map, kf, rig, &mut outcome.rejected)?;
+        } else if map.keyframe_count() >= self.thresholds.min_keyframes {
+            outcome.accepted = self.detect(map, kf, &descriptor, rig, &mut outcome.rejected)?;
+        }
+        self.database
+            .insert(kf, &descriptor)
+            .in_stage("keyframe database insert")?;
+        Ok(outcome)
+    }
+
+    /// The keyframes a query from `kf` must not return: itself, its
+    /// covisible keyframes and theirs.
+    fn neighbourhood(map: &Map, kf: KeyFrameId) -> HashSet<KeyFrameId> {
+        let mut exclude: HashSet<KeyFrameId> = HashSet::from([kf]);
+        for n in map.best_covisible(kf, usize::MAX) {
+            exclude.insert(n);
+            exclude.extend(map.best_covisible(n, usize::MAX));
+        }
+        exclude
+    }
+
+    fn detect(
+        &mut self,
+        map: &Map,
+        kf: KeyFrameId,
+        descriptor: &[f32],
+        rig: &StereoRig,
+        rejected: &mut Vec<RejectedCandidate>,
+    ) -> Result<Option<AcceptedLoop>, SlamError> {
+        let th = self.thresholds;
+        let exclude = Self::neighbourhood(map, kf);
+        let candidates = self.candidates(map, descriptor, &exclude, th.candidates)?;
+        for (candidate, score) in candidates {
+            let verified = match verify_candidate(map, kf, candidate, rig, &th)? {
+                Verification::Verified(v) => v,
+                Verification::Rejected { stage, count } => {
+                    if stage != LoopStage::DescriptorMatches {
+                        rejected.push(RejectedCandidate {
+                            query: kf,
+                            candidate,
+                            score,
+                            stage,
+                            count,
+                        });
+                    }
+                    continue;
+                }
+            };
+            let query_pose = map.pose_cw_of(kf).in_stage("loop detection")?;
+            let correction = query_pose.inverse().compose(&verified.pose_cw);
+            let (_, group_points) = candidate_group(map, candidate, th.group_size);
+            let group: HashSet<KeyFrameId> = verified.group.iter().copied().collect();
+            let mut confirmations = 1;
+            for other in map
+                .best_covisible(kf, th.confirming_covisibles)
+                .into_iter()
+                .filter(|k| !group.contains(k))
+            {
+                let c = confirm_with(map, other, &correction, &group_points, rig)?;
+                if c.inliers >= th.min_confirmation_inliers {
+                    confirmations += 1;
+                }
+            }
+            tracing::debug!(
+                keyframe = kf.0,
+                candidate = candidate.0,
+                inliers = verified.inliers,
+                confirmations,
+                "loop verified"
+            );
+            if confirmations >= th.confirmations {
+                return Ok(Some(AcceptedLoop {
+                    query: kf,
+                    candidate,
+                    group: verified.group,
+                    pose_cw: verified.pose_cw,
+                    matches: verified.matches,
+                    inliers: verified.inliers,
+                    confirmations,
+                }));
+            }
+            self.pending = Some(PendingLoop {
+                candidate,
+                score,
+                query: kf,
+                group: verified.group,
+                group_points,
+                correction,
+                confirmations,
+                misses: 0,
+            });
+            return Ok(None);
+        }
+        Ok(None)
+    }
+
+    fn confirm_pending(
+        &mut self,
+        map: &Map,
+        kf: KeyFrameId,
+        rig: &StereoRig,
+        rejected: &mut Vec<RejectedCandidate>,
+    ) -> Result<Option<AcceptedLoop>, SlamError> {
+        let th = self.thresholds;
+        let Some(mut pending) = self.pending.take() else {
+            return Ok(None);
+        };
+        let c = confirm_with(map, kf, &pending.correction, &pending.group_points, rig)?;
+        if c.inliers >= th.min_confirmation_inliers {
+            pending.confirmations += 1;
+            if pending.confirmations >= th.confirmations {
+                return Ok(Some(AcceptedLoop {
+                    query: kf,
+                    candidate: pending.candidate,
+                    group: pending.group,
+                    pose_cw: c.pose_cw,
+                    matches: c.matches,
+                    inliers: c.inliers,
+                    confirmations: pending.confirmations,
+                }));
+            }
+        } else {
+            pending.misses += 1;
+            if pending.misses >= th.max_misses {
+                rejected.push(RejectedCandidate {
+                    query: pending.query,
+                    candidate: pending.candidate,
+                    score: pending.score,
+                    stage: LoopStage::Confirmation,
+                    count: pending.confirmations,
+                });
+                return Ok(None);
+            }
+        }
+        self.pending = Some(pending);
+        Ok(None)
+    }
+}

@@ -1,0 +1,31 @@
+//! Loop closing (ORB-SLAM3's `LoopClosing`) for a stereo map: detection with
+//! the place-recognition database, the multi-stage geometric check, and the
+//! correction (loop fusion and the essential graph).
+//!
+//! A layer beside local mapping: it reads and corrects a [`Map`](crate::map::Map),
+//! uses [`place`](crate::place) for retrieval, and borrows tracking's
+//! search-by-projection and pose-optimisation steps for the check (a loop
+//! check is a relocalisation of a keyframe against older points). The
+//! system layer ([`crate::system`]) decides when it runs.
+//!
+//! - [`LoopDetector`]: database, candidates, verification, confirmation;
+//! - [`verify_candidate`]: one candidate's check, stage by stage;
+//! - [`correct_loop`]: the correction;
+//! - [`build_essential_graph`] / [`optimise_essential_graph`]: the pose graph.
+
+mod correct;
+mod detector;
+mod essential_graph;
+mod thresholds;
+mod verify;
+
+pub use correct::{correct_loop, pose_difference, LoopCorrection};
+pub use detector::{AcceptedLoop, DetectionOutcome, LoopDetector, RejectedCandidate};
+pub use essential_graph::{
+    build_essential_graph, optimise_essential_graph, EssentialGraph, EssentialGraphInput,
+    EssentialGraphOutcome, MIN_ESSENTIAL_WEIGHT,
+};
+pub use thresholds::LoopThresholds;
+pub use verify::{
+    confirm_with, verify_candidate, Confirmation, LoopStage, Verification, VerifiedLoop,
+};

@@ -1,0 +1,69 @@
+//! The loop check's thresholds, ORB-SLAM3's (`LoopClosing.cc`,
+//! `DetectCommonRegionsFromBoW` and `DetectAndReffineSim3FromLastKF`) with
+//! SuperPoint's L2 descriptor thresholds in the matchers.
+
+/// Every count the multi-stage loop check needs, in the order it needs them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopThresholds {
+    /// Keyframes in the map before any loop is looked for (ORB-SLAM3: 12,
+    /// `KeyFramesInMap() < 12`).
+    pub min_keyframes: usize,
+    /// Candidates taken from the keyframe database per keyframe (ORB-SLAM3's
+    /// `DetectNBestCandidates(…, 3, …)`).
+    pub candidates: usize,
+    /// Covisible keyframes of the candidate whose points join the search
+    /// (ORB-SLAM3's `nNumCovisibles = 10`).
+    pub group_size: usize,
+    /// Ratio test of the descriptor matching against the candidate group.
+    /// ORB-SLAM3 uses 0.9 with Hamming distances; SuperPoint's L2 distances
+    /// are less spread, so relocalisation's 0.75 is used (a tighter test:
+    /// zero false loops is the hard requirement).
+    pub match_ratio: f32,
+    /// Descriptor matches with the candidate group (ORB-SLAM3's
+    /// `nBoWMatches = 20`).
+    pub min_matches: usize,
+    /// RANSAC inliers of the relative pose (ORB-SLAM3's `nBoWInliers = 15`).
+    pub min_ransac_inliers: usize,
+    /// Inliers of the pose optimisation on the matches (ORB-SLAM3's
+    /// `nSim3Inliers = 20`).
+    pub min_optimised_inliers: usize,
+    /// Matches after the first search by projection, window 10 px
+    /// (ORB-SLAM3's `nProjMatches = 50`).
+    pub min_projection_matches: usize,
+    /// Inliers after the second search by projection, window 3 px, and a
+    /// last optimisation (ORB-SLAM3's `nProjOptMatches = 80`).
+    pub min_reprojection_inliers: usize,
+    /// Inliers needed by a covisible or a later keyframe to confirm the loop
+    /// at the same correction (ORB-SLAM3's `DetectAndReffineSim3FromLastKF`:
+    /// `nProjOptMatches = 50`).
+    pub min_confirmation_inliers: usize,
+    /// Keyframes agreeing on the loop, the detecting one included, before
+    /// it is accepted (ORB-SLAM3's `mnLoopNumCoincidences >= 3`).
+    pub confirmations: usize,
+    /// Covisible keyframes of the detecting keyframe tried as confirmers
+    /// (ORB-SLAM3's `nNumCovisibles = 5` there).
+    pub confirming_covisibles: usize,
+    /// Later keyframes that may fail to confirm before a pending loop is
+    /// dropped (ORB-SLAM3's `mnLoopNumNotFound >= 2`).
+    pub max_misses: usize,
+}
+
+impl Default for LoopThresholds {
+    fn default() -> Self {
+        Self {
+            min_keyframes: 12,
+            candidates: 3,
+            group_size: 10,
+            match_ratio: 0.75,
+            min_matches: 20,
+            min_ransac_inliers: 15,
+            min_optimised_inliers: 20,
+            min_projection_matches: 50,
+            min_reprojection_inliers: 80,
+            min_confirmation_inliers: 50,
+            confirmations: 3,
+            confirming_covisibles: 5,
+            max_misses: 2,
+        }
+    }
+}

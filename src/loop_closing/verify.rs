@@ -1,0 +1,199 @@
+//! The geometric check of one loop candidate (ORB-SLAM3's
+//! `DetectCommonRegionsFromBoW` for a stereo map, scale fixed): descriptor
+//! matches with the candidate's group, a RANSAC pose, pose optimisation,
+//! two searches by projection. Read only: it works on a [`Frame`] made from
+//! the query keyframe.
+
+use std::collections::BTreeSet;
+
+use crate::camera::StereoRig;
+use crate::error::SlamError;
+use crate::map::{KeyFrameId, Map, MapPointId};
+use crate::optim::{LieGroup, Se3};
+use crate::tracking::{
+    match_descriptors, match_projected, pnp_ransac, refine_pose, visible_in_frame, Frame,
+    VisiblePoint,
+};
+
+use super::thresholds::LoopThresholds;
+
+/// The stage at which a candidate failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LoopStage {
+    /// Too few descriptor matches with the candidate group.
+    DescriptorMatches,
+    /// The RANSAC pose found too few inliers.
+    Ransac,
+    /// Too few inliers after optimising the pose on the matches.
+    PoseOptimisation,
+    /// Too few matches after the first search by projection.
+    Projection,
+    /// Too few inliers after the second search by projection.
+    Reprojection,
+    /// Verified, but not confirmed by enough keyframes.
+    Confirmation,
+}
+
+/// A candidate that passed every geometric stage.
+#[derive(Debug, Clone)]
+pub struct VerifiedLoop {
+    /// The candidate keyframe (the loop keyframe).
+    pub candidate: KeyFrameId,
+    /// The candidate and its covisible keyframes.
+    pub group: Vec<KeyFrameId>,
+    /// The query keyframe's pose `T_cw` in the loop's frame.
+    pub pose_cw: Se3,
+    /// Per query keypoint: the group's point matched to it.
+    pub matches: Vec<Option<MapPointId>>,
+    /// Inliers of the final optimisation.
+    pub inliers: usize,
+}
+
+/// The outcome of one check: verified, or the stage that failed with the
+/// count it reached.
+#[derive(Debug, Clone)]
+pub enum Verification {
+    /// Every stage passed.
+    Verified(VerifiedLoop),
+    /// A stage failed.
+    Rejected {
+        /// Which one.
+        stage: LoopStage,
+        /// The count it reached.
+        count: usize,
+    },
+}
+
+/// The candidate and its best covisible keyframes, and their points.
+pub(crate) fn candidate_group(
+    map: &Map,
+    candidate: KeyFrameId,
+    size: usize,
+) -> (Vec<KeyFrameId>, Vec<MapPointId>) {
+    let mut group = vec![candidate];
+    group.extend(map.best_covisible(candidate, size));
+    let mut points = BTreeSet::new();
+    for kf in &group {
+        if let Ok(kf) = map.keyframe(*kf) {
+            points.extend(
+                kf.observed_points()
+                    .filter_map(|(_, p)| map.resolve_point(p)),
+            );
+        }
+    }
+    (group, points.into_iter().collect())
+}
+
+/// Searches `points` around their projections at the frame's pose.
+fn search(
+    frame: &mut Frame,
+    map: &Map,
+    points: &[MapPointId],
+    rig: &StereoRig,
+    radius: f32,
+) -> Result<usize, SlamError> {
+    let taken: BTreeSet<MapPointId> = frame.map_points.iter().flatten().copied().collect();
+    let visible: Vec<VisiblePoint> = points
+        .iter()
+        .filter(|p| !taken.contains(p))
+        .filter_map(|p| visible_in_frame(map, *p, frame, rig))
+        .collect();
+    match_projected(frame, map, &visible, radius, (1, 1), None)
+}
+
+/// Checks `candidate` for the query keyframe (see the module's docs).
+pub fn verify_candidate(
+    map: &Map,
+    query: KeyFrameId,
+    candidate: KeyFrameId,
+    rig: &StereoRig,
+    th: &LoopThresholds,
+) -> Result<Verification, SlamError> {
+    let rejected = |stage, count| Ok(Verification::Rejected { stage, count });
+    let Ok(query_kf) = map.keyframe(query) else {
+        return rejected(LoopStage::DescriptorMatches, 0);
+    };
+    let (group, points) = candidate_group(map, candidate, th.group_size);
+    let mut frame = Frame::from_keyframe(query_kf, rig);
+    frame.map_points.iter_mut().for_each(|p| *p = None);
+    let matches = match_descriptors(&frame, map, &points, th.match_ratio)?;
+    if matches.len() < th.min_matches {
+        return rejected(LoopStage::DescriptorMatches, matches.len());
+    }
+    let Some(ransac) = pnp_ransac(&frame, map, &matches, rig)? else {
+        return rejected(LoopStage::Ransac, 0);
+    };
+    if ransac.inliers < th.min_ransac_inliers {
+        return rejected(LoopStage::Ransac, ransac.inliers);
+    }
+    frame.pose_cw = ransac.pose_cw;
+    for (i, p) in &matches {
+        frame.map_points[*i] = Some(*p);
+    }
+    let optimised = refine_pose(&mut frame, map, rig)?;
+    if optimised < th.min_optimised_inliers {
+        return rejected(LoopStage::PoseOptimisation, optimised);
+    }
+    let found = optimised + search(&mut frame, map, &points, rig, 10.0)?;
+    if found < th.min_projection_matches {
+        return rejected(LoopStage::Projection, found);
+    }
+    refine_pose(&mut frame, map, rig)?;
+    search(&mut frame, map, &points, rig, 3.0)?;
+    let inliers = refine_pose(&mut frame, map, rig)?;
+    if inliers < th.min_reprojection_inliers {
+        return rejected(LoopStage::Reprojection, inliers);
+    }
+    Ok(Verification::Verified(VerifiedLoop {
+        candidate,
+        group,
+        pose_cw: frame.pose_cw,
+        matches: frame.map_points,
+        inliers,
+    }))
+}
+
+/// What a keyframe moved by the loop's correction sees of the group.
+#[derive(Debug, Clone)]
+pub struct Confirmation {
+    /// Inliers after the search and the optimisation.
+    pub inliers: usize,
+    /// The keyframe's refined pose `T_cw` in the loop's frame.
+    pub pose_cw: Se3,
+    /// Per keypoint: the group's point matched to it.
+    pub matches: Vec<Option<MapPointId>>,
+}
+
+/// Whether keyframe `kf`, moved by the loop's correction, sees the group's
+/// points (ORB-SLAM3's `DetectAndReffineSim3FromLastKF`): its corrected
+/// pose is `T_kw · correction`; search window 8 px, then optimisation.
+pub fn confirm_with(
+    map: &Map,
+    kf: KeyFrameId,
+    correction: &Se3,
+    group_points: &[MapPointId],
+    rig: &StereoRig,
+) -> Result<Confirmation, SlamError> {
+    let Ok(keyframe) = map.keyframe(kf) else {
+        return Ok(Confirmation {
+            inliers: 0,
+            pose_cw: *correction,
+            matches: Vec::new(),
+        });
+    };
+    let mut frame = Frame::from_keyframe(keyframe, rig);
+    frame.map_points.iter_mut().for_each(|p| *p = None);
+    frame.pose_cw = keyframe.pose_cw().compose(correction);
+    let found = search(&mut frame, map, group_points, rig, 8.0)?;
+    let inliers = if found < 10 {
+        0
+    } else {
+        refine_pose(&mut frame, map, rig)?
+    };
+    Ok(Confirmation {
+        inliers,
+        pose_cw: frame.pose_cw,
+        matches: frame.map_points,
+    })
+}
