@@ -14,11 +14,13 @@ pub struct SynthArgs {
     /// Output root: the sequence goes to OUT/sequences/NAME, the ground truth to OUT/poses/NAME.txt.
     #[arg(long)]
     out: PathBuf,
-    /// Scene: loop (city block, back to the start), straight (street), wobbly (hand-held, corridor)
-    /// or highway (open road at 25 m/s, most texture 40-150 m away: stereo far points).
+    /// Scene: loop (city block, back to the start), straight (street), wobbly (hand-held, corridor),
+    /// highway (open road at 25 m/s, most texture 40-150 m away: stereo far points) or aliasing
+    /// (a street passing two look-alike places whose walls stand at other distances: a false loop).
     #[arg(long, default_value = "loop")]
     scene: SceneName,
-    /// Number of frames [default: one lap + 1 for loop, 300 for highway, 200 otherwise].
+    /// Number of frames [default: one lap + 1 for loop, 300 for highway, 100 m past the second
+    /// look-alike place for aliasing (300 at 10 m/s), 200 otherwise].
     #[arg(long)]
     frames: Option<usize>,
     /// Image size as WIDTHxHEIGHT.
@@ -39,7 +41,7 @@ pub struct SynthArgs {
     /// Frames per second [default: 10 outdoors, 20 for wobbly].
     #[arg(long)]
     fps: Option<f64>,
-    /// Speed in m/s [default: 10 for loop and straight, 25 for highway, 1.2 for wobbly].
+    /// Speed in m/s [default: 10 for loop, straight and aliasing, 25 for highway, 1.2 for wobbly].
     #[arg(long)]
     speed: Option<f64>,
     /// Gaussian pixel noise, standard deviation in gray levels [default: 1].

@@ -22,15 +22,21 @@ pub enum SceneName {
     /// barriers and cabinets 5–15 m away, and most of the texture on
     /// buildings and hillsides 40–150 m from the road (stereo "far" points).
     Highway,
+    /// Perceptual aliasing: a straight street that passes two look-alike
+    /// places (the same façade textures at the same coordinates along the
+    /// street) whose walls stand at different distances from the road, so
+    /// that appearance says "loop" but geometry says "no".
+    Aliasing,
 }
 
 impl SceneName {
     /// All scenes, in the order they are documented.
-    pub const ALL: [SceneName; 4] = [
+    pub const ALL: [SceneName; 5] = [
         SceneName::Loop,
         SceneName::Straight,
         SceneName::Wobbly,
         SceneName::Highway,
+        SceneName::Aliasing,
     ];
 
     /// The lower-case name used on the command line.
@@ -40,6 +46,7 @@ impl SceneName {
             SceneName::Straight => "straight",
             SceneName::Wobbly => "wobbly",
             SceneName::Highway => "highway",
+            SceneName::Aliasing => "aliasing",
         }
     }
 }
@@ -58,7 +65,7 @@ impl FromStr for SceneName {
             .into_iter()
             .find(|scene| scene.as_str().eq_ignore_ascii_case(s))
             .ok_or_else(|| {
-                format!("unknown scene `{s}`; expected loop, straight, wobbly or highway")
+                format!("unknown scene `{s}`; expected loop, straight, wobbly, highway or aliasing")
             })
     }
 }
@@ -83,7 +90,8 @@ pub struct SyntheticConfig {
     /// so that one lap is a whole number of frames.
     pub speed: f64,
     /// Number of frames; `None`: one lap for `loop` (plus the frame back at
-    /// the start), 300 for `highway`, 200 for the others.
+    /// the start), 300 for `highway`, 100 m past the second look-alike place
+    /// for `aliasing` (300 frames at its default speed), 200 for the others.
     pub frames: Option<usize>,
     /// Seed of the world's textures, the shake and the image noise.
     pub seed: u64,
@@ -110,11 +118,12 @@ impl Default for SyntheticConfig {
 impl SyntheticConfig {
     /// The defaults for a scene: 640×480, f = 400 px (77° horizontal field
     /// of view, close to KITTI's 81°); a car at 10 m/s (25 m/s on the
-    /// highway) and 10 fps with a 0.5 m baseline outdoors, a walker at
+    /// highway) and 10 fps with a 0.5 m baseline outdoors (`aliasing` is
+    /// driven like `straight`), a walker at
     /// 1.2 m/s and 20 fps with a 0.12 m baseline indoors.
     pub fn for_scene(scene: SceneName) -> Self {
         let (baseline, fps, speed) = match scene {
-            SceneName::Loop | SceneName::Straight => (0.5, 10.0, 10.0),
+            SceneName::Loop | SceneName::Straight | SceneName::Aliasing => (0.5, 10.0, 10.0),
             SceneName::Highway => (0.5, 10.0, 25.0),
             SceneName::Wobbly => (0.12, 20.0, 1.2),
         };
@@ -214,6 +223,15 @@ mod tests {
         }
         assert_eq!("LOOP".parse::<SceneName>().unwrap(), SceneName::Loop);
         assert_eq!("highway".parse::<SceneName>().unwrap(), SceneName::Highway);
+        assert_eq!(
+            "aliasing".parse::<SceneName>().unwrap(),
+            SceneName::Aliasing
+        );
+        assert_eq!(SceneName::Aliasing.to_string(), "aliasing");
+        assert_eq!(
+            "Aliasing".parse::<SceneName>().unwrap().as_str(),
+            "aliasing"
+        );
         assert!("ring"
             .parse::<SceneName>()
             .unwrap_err()

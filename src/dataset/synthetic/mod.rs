@@ -1,7 +1,8 @@
 //! Synthetic stereo sequences with exact ground truth: a world of textured
 //! planes (a city block, a street, a ring corridor, an open highway with
-//! its texture mostly far away) ray-cast from a rectified stereo camera
-//! along a trajectory, with depth for RGB-D.
+//! its texture mostly far away, a street with two look-alike places)
+//! ray-cast from a rectified stereo camera along a trajectory, with depth
+//! for RGB-D.
 //!
 //! Everything is a pure function of [`SyntheticConfig`] (its seed
 //! included): the same config writes byte-identical files.
@@ -38,7 +39,7 @@ pub use config::{SceneName, SyntheticConfig};
 pub use error::{Result, SyntheticError};
 pub use render::{render_view, View};
 pub use rng::SplitMix64;
-pub use scenes::{build_scene, Scene};
+pub use scenes::{build_scene, AliasingLayout, Scene, ALIASING_LAYOUT};
 pub use sequence::{SyntheticFrame, SyntheticSequence};
 pub use texture::{DiscMarker, Footprint, ProceduralTexture, ShapeKind, ShapeLayer, Texture};
 pub use trajectory::{PathShape, Trajectory, Wobble};

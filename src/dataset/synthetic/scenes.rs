@@ -1,6 +1,7 @@
 //! The built-in scenes: a city block (driven around), a straight street,
-//! a ring corridor (walked with a hand-held camera) and an open highway
-//! (most of the texture far from the road).
+//! a ring corridor (walked with a hand-held camera), an open highway
+//! (most of the texture far from the road) and a straight street with two
+//! look-alike places (perceptual aliasing).
 
 use nalgebra::{Point3, Vector3};
 
@@ -39,6 +40,7 @@ pub fn build_scene(config: &SyntheticConfig) -> Scene {
         SceneName::Straight => straight_street(config, nominal_step),
         SceneName::Wobbly => ring_corridor(config, nominal_step),
         SceneName::Highway => highway(config, nominal_step),
+        SceneName::Aliasing => aliasing_street(config, nominal_step),
     }
 }
 
@@ -170,6 +172,214 @@ fn straight_street(config: &SyntheticConfig, step: f64) -> Scene {
             styles::asphalt(mix64(seed ^ 43)),
         ),
     ];
+    Scene {
+        world: World::new(planes),
+        trajectory: Trajectory {
+            shape: PathShape::Straight,
+            step,
+            fps: config.fps,
+            wobble: None,
+        },
+        frames,
+    }
+}
+
+/// Where the `aliasing` scene's two look-alike places stand along its
+/// straight street (the camera's path is the line x = 0, y = 0; frame `i`
+/// is at z = `i·step`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AliasingLayout {
+    /// Start and end (z, metres) of place A.
+    pub place_a: [f64; 2],
+    /// Start and end (z, metres) of place B: as long as place A.
+    pub place_b: [f64; 2],
+    /// Distances (metres) of place A's left and right walls from the path.
+    pub walls_a: [f64; 2],
+    /// Distances (metres) of place B's left and right walls from the path.
+    pub walls_b: [f64; 2],
+    /// Distances (metres) of the ordinary street's left and right walls.
+    pub street_walls: [f64; 2],
+    /// Ordinary street driven past place B by the default frame count (metres).
+    pub street_after: f64,
+}
+
+/// The `aliasing` scene's layout (see [`AliasingLayout`]): place A over
+/// z ∈ [70, 100) m, 70 m of ordinary street, place B over z ∈ [170, 200) m;
+/// A's walls 4.5 m (left) and 6 m (right) from the path, B's 6.5 m and
+/// 8 m; the ordinary street's 7 m and 6 m.
+pub const ALIASING_LAYOUT: AliasingLayout = AliasingLayout {
+    place_a: [70.0, 100.0],
+    place_b: [170.0, 200.0],
+    walls_a: [4.5, 6.0],
+    walls_b: [6.5, 8.0],
+    street_walls: [7.0, 6.0],
+    street_after: 100.0,
+};
+
+impl AliasingLayout {
+    /// The frames whose camera stands inside `place` (`[start, end]`
+    /// metres) at `step` metres per frame: the first and the last index.
+    pub fn frames_in(place: [f64; 2], step: f64) -> [usize; 2] {
+        [
+            (place[0] / step).ceil().max(0.0) as usize,
+            (place[1] / step).floor().max(0.0) as usize,
+        ]
+    }
+
+    /// The default number of frames at `step` metres per frame: from the
+    /// start to `street_after` metres past place B.
+    pub fn default_frames(&self, step: f64) -> usize {
+        (((self.place_b[1] + self.street_after) / step).round() as usize).max(1)
+    }
+}
+
+/// One façade stretch on one side of a straight street along +z.
+struct Stretch {
+    /// Start and end (z, metres).
+    z: [f64; 2],
+    /// Distance from the path (metres).
+    distance: f64,
+    /// Seed of the texture and the skyline.
+    seed: u64,
+    /// Probability of a side-street gap (see [`Skyline`]).
+    gaps: f64,
+}
+
+/// The façades of one side of a straight street (`left`: x < 0) made of
+/// `stretches` in order along +z, each a [`building_row`] whose `u` starts
+/// at its own beginning (left) or end (right), so that two stretches with
+/// the same seed and length look exactly alike. Where the distance
+/// changes, the side face of the building that stands out closes the gap.
+fn street_side(stretches: &[Stretch], left: bool, ground: f64) -> Vec<Plane> {
+    let sign = if left { -1.0 } else { 1.0 };
+    let row = |s: &Stretch| {
+        let (x, [z0, z1]) = (sign * s.distance, s.z);
+        // A wall faces the right of its direction: +x on the left side.
+        let (from, to) = if left {
+            ([x, z0], [x, z1])
+        } else {
+            ([x, z1], [x, z0])
+        };
+        building_row(from, to, ground, s.seed, s.gaps)
+    };
+    // The skyline height of `s`'s row at z (just inside its ends).
+    let height_at = |s: &Stretch, plane: &Plane, z: f64| {
+        let eps = 1e-6;
+        let u = if left { z - s.z[0] } else { s.z[1] - z };
+        let u = u.clamp(eps, plane.u_length - eps);
+        plane.skyline.map_or(plane.v_length, |k| k.height_at(u))
+    };
+    let rows: Vec<Plane> = stretches.iter().map(row).collect();
+    let mut planes = rows.clone();
+    for (i, pair) in stretches.windows(2).enumerate() {
+        let (before, after) = (&pair[0], &pair[1]);
+        let z = after.z[0];
+        if (before.distance - after.distance).abs() < 1e-9 {
+            continue;
+        }
+        // The side face belongs to the building nearer the road.
+        let (owner, plane) = if after.distance < before.distance {
+            (after, &rows[i + 1])
+        } else {
+            (before, &rows[i])
+        };
+        let height = height_at(owner, plane, z);
+        if height <= 0.0 {
+            continue;
+        }
+        // Facing −z where the street narrows, +z where it widens.
+        let (x_before, x_after) = (sign * before.distance, sign * after.distance);
+        let (from, to) = if left {
+            ([x_before, z], [x_after, z])
+        } else {
+            ([x_after, z], [x_before, z])
+        };
+        planes.push(Plane::wall(
+            from,
+            to,
+            ground,
+            height,
+            styles::facade(mix64(owner.seed ^ 1)),
+        ));
+    }
+    planes
+}
+
+/// The `aliasing` scene: a straight street driven at 10 m/s (1 m per
+/// frame) that passes two look-alike places, A and B, for perceptual-
+/// aliasing tests of loop detection (see [`ALIASING_LAYOUT`]).
+///
+/// * Places A (z ∈ [70, 100) m) and B (z ∈ [170, 200) m) are 30 m of
+///   façades on both sides whose textures and skylines are exactly the
+///   same: the same seeds and styles, and the same texture coordinates
+///   relative to the start of the place. Appearance retrieval (bag of
+///   words, VLAD) finds B similar to A.
+/// * But the walls stand at different distances from the path: 4.5 m
+///   (left) and 6 m (right) at A, a 10.5-m street; 6.5 m and 8 m at B, a
+///   14.5-m street. No single rigid transform maps A's 3-D points onto
+///   B's (it would have to move the left wall 2 m left and the right wall
+///   2 m right), so a metric check of A ↔ B (stereo points, PnP or a
+///   rigid fit) must fail. Two limits: each wall on its own is a rigid
+///   copy (its points are shifted 2 m sideways and 100 m along the
+///   street), so a check that accepts the inliers of one wall alone is
+///   fooled; and since the walls only move sideways, every A ↔ B
+///   correspondence stays on its image row, which one epipolar geometry
+///   (a sideways translation's) explains for both walls: a
+///   fundamental-matrix check alone cannot reject the pair.
+/// * Everywhere else the street is ordinary: façades 7 m (left) and 6 m
+///   (right) from the path with side-street gaps, a new texture seed for
+///   each stretch (before A, the 70 m between A and B, after B), one
+///   asphalt road and a wall far ahead. Where the wall distance changes,
+///   the side face of the nearer building closes the gap.
+///
+/// At the default 1 m per frame the camera stands in place A in frames
+/// 70–100 and in place B in frames 170–200; the default 300 frames end
+/// 100 m past B. The places do not move with the speed or the frame count.
+fn aliasing_street(config: &SyntheticConfig, step: f64) -> Scene {
+    let seed = config.seed;
+    let layout = ALIASING_LAYOUT;
+    let frames = config.frames.unwrap_or_else(|| layout.default_frames(step));
+    let ground = CAR_CAMERA_HEIGHT;
+    let back = -30.0;
+    let far = (frames as f64 * step).max(layout.place_b[1]) + 80.0;
+    let mut planes = Vec::new();
+    for (side, left) in [(0usize, true), (1, false)] {
+        let street = |k: u64, z: [f64; 2]| Stretch {
+            z,
+            distance: layout.street_walls[side],
+            seed: mix64(seed ^ (110 + 2 * k + side as u64)),
+            gaps: 0.3,
+        };
+        // The same seed at both places: the look-alike façades.
+        let place = |z: [f64; 2], walls: [f64; 2]| Stretch {
+            z,
+            distance: walls[side],
+            seed: mix64(seed ^ (120 + side as u64)),
+            gaps: 0.0,
+        };
+        let stretches = [
+            street(0, [back, layout.place_a[0]]),
+            place(layout.place_a, layout.walls_a),
+            street(1, [layout.place_a[1], layout.place_b[0]]),
+            place(layout.place_b, layout.walls_b),
+            street(2, [layout.place_b[1], far]),
+        ];
+        planes.extend(street_side(&stretches, left, ground));
+    }
+    planes.push(Plane::wall(
+        [-60.0, far],
+        [60.0, far],
+        ground,
+        30.0,
+        styles::facade(mix64(seed ^ 130)),
+    ));
+    planes.push(horizontal(
+        ground,
+        [-60.0, 60.0],
+        [back, far],
+        true,
+        styles::asphalt(mix64(seed ^ 131)),
+    ));
     Scene {
         world: World::new(planes),
         trajectory: Trajectory {
@@ -474,6 +684,7 @@ fn roadside_objects(seed: u64, ground: f64, until: f64) -> Vec<Plane> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::world::Hit;
     use super::*;
 
     #[test]
@@ -549,5 +760,96 @@ mod tests {
         let eye = Point3::from(scene.trajectory.pose(599.0).translation.vector);
         let ahead = scene.world.cast(&eye, &Vector3::z()).unwrap();
         assert!((100.0..=160.0).contains(&ahead.t), "{ahead:?}");
+    }
+
+    #[test]
+    fn the_aliasing_street_is_straight_and_forward() {
+        let config = SyntheticConfig::for_scene(SceneName::Aliasing);
+        let scene = build_scene(&config);
+        let layout = ALIASING_LAYOUT;
+        assert!((scene.trajectory.step - 1.0).abs() < 1e-12);
+        assert_eq!(scene.frames, 300);
+        assert_eq!(scene.trajectory.shape, PathShape::Straight);
+        assert!(scene.trajectory.wobble.is_none());
+        for i in 0..scene.frames {
+            let pose = scene.trajectory.pose(i as f64);
+            let t = pose.translation.vector;
+            assert!(
+                t.x.abs() < 1e-12 && t.y.abs() < 1e-12 && (t.z - i as f64).abs() < 1e-9,
+                "frame {i}: {t}"
+            );
+            assert!(pose.rotation.angle() < 1e-12, "frame {i}");
+        }
+        // A, at least 40 m of street, B, and street after B.
+        let last_z = (scene.frames - 1) as f64 * scene.trajectory.step;
+        assert!(layout.place_b[0] - layout.place_a[1] >= 40.0);
+        assert!((25.0..=30.0).contains(&(layout.place_a[1] - layout.place_a[0])));
+        assert_eq!(
+            layout.place_a[1] - layout.place_a[0],
+            layout.place_b[1] - layout.place_b[0]
+        );
+        assert!(last_z > layout.place_b[1] + 50.0, "{last_z}");
+        assert_eq!(AliasingLayout::frames_in(layout.place_a, 1.0), [70, 100]);
+        assert_eq!(AliasingLayout::frames_in(layout.place_b, 1.0), [170, 200]);
+        // The places stay put at other speeds; the frame count follows.
+        let mut fast = config.clone();
+        fast.speed = 20.0;
+        assert_eq!(build_scene(&fast).frames, 150);
+    }
+
+    /// Where a ray from a camera 5 m before `z` towards the point
+    /// `(x, −height, z)` (height above the road) hits the aliasing street.
+    fn aliasing_hit(scene: &Scene, x: f64, height: f64, z: f64) -> Option<(Hit, Plane)> {
+        let eye = Point3::new(0.0, 0.0, z - 5.0);
+        let target = Point3::new(x, CAR_CAMERA_HEIGHT - height, z);
+        let hit = scene.world.cast(&eye, &(target - eye))?;
+        Some((hit, scene.world.planes[hit.plane].clone()))
+    }
+
+    #[test]
+    fn the_two_places_look_alike_at_different_distances() {
+        let scene = build_scene(&SyntheticConfig::for_scene(SceneName::Aliasing));
+        let layout = ALIASING_LAYOUT;
+        let shift = layout.place_b[0] - layout.place_a[0];
+        let (mut compared, mut different) = (0, 0);
+        for side in [0usize, 1] {
+            let sign = if side == 0 { -1.0 } else { 1.0 };
+            for k in 0..13 {
+                let along = 3.0 + 2.0 * k as f64;
+                for height in [2.0, 4.5] {
+                    let z = layout.place_a[0] + along;
+                    let (a, plane_a) =
+                        aliasing_hit(&scene, sign * layout.walls_a[side], height, z).unwrap();
+                    let (b, plane_b) =
+                        aliasing_hit(&scene, sign * layout.walls_b[side], height, z + shift)
+                            .unwrap();
+                    // The same texture at the same surface coordinates…
+                    assert_eq!(plane_a.texture, plane_b.texture, "side {side} at {along} m");
+                    assert_eq!(plane_a.skyline, plane_b.skyline);
+                    assert!(
+                        (a.u - b.u).abs() < 1e-6 && (a.v - b.v).abs() < 1e-6,
+                        "side {side} at {along} m: {a:?} {b:?}"
+                    );
+                    // …but on a wall at another distance from the path.
+                    let gap = (plane_a.origin.x - plane_b.origin.x).abs();
+                    assert!((gap - 2.0).abs() < 1e-9, "side {side}: {gap}");
+                    // The ordinary street between them looks different
+                    // (or shows a side-street gap).
+                    let between = layout.place_a[1] + 20.0 + along;
+                    let c = aliasing_hit(&scene, sign * layout.street_walls[side], height, between);
+                    if let Some((_, plane_c)) = c {
+                        assert_ne!(plane_a.texture, plane_c.texture);
+                        different += 1;
+                    }
+                    compared += 1;
+                }
+            }
+        }
+        assert_eq!(compared, 52);
+        assert!(different > 26, "{different}");
+        // Both sides widen at B: no single translation maps A onto B.
+        let left_shift = layout.walls_a[0] - layout.walls_b[0];
+        let right_shift = layout.walls_b[1] - layout.walls_a[1];
+        assert!((right_shift - left_shift).abs() >= 3.0);
     }
 }
