@@ -149,3 +149,16 @@ pub fn untracked(records: &[spslam::system::FrameRecord]) -> Vec<usize> {
         .map(|r| r.index)
         .collect()
 }
+
+/// Switches loop closing on with the default codebook (`models/vlad_k64.spvlad`
+/// or `SPSLAM_CODEBOOK`), as `spslam run` does, for extractor `config`.
+pub fn enable_loop_closing(slam: &mut spslam::system::StereoSlam, config: &ExtractorConfig) {
+    let path = spslam::place::default_codebook_path();
+    let codebook = spslam::place::Codebook::load_for(&path, config)
+        .unwrap_or_else(|e| panic!("codebook {}: {e}", path.display()));
+    slam.enable_loop_closing(
+        std::sync::Arc::new(codebook.vlad),
+        spslam::loop_closing::LoopThresholds::default(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+}
