@@ -24,7 +24,9 @@ pub use io::{
     write_kitti, write_trajectory, write_tum,
 };
 pub use kitti_metric::{kitti_metric, KittiMetric, LengthError, SegmentError};
-pub use plot::{write_error_plot, write_trajectory_plot, PlotPlane};
+pub use plot::{
+    write_error_plot, write_trajectory_plot, write_trajectory_plot_with_links, PlotPlane,
+};
 pub use report::{
     evaluate, pair_trajectories, AteReport, EvalOptions, EvalReport, Pairing, RpeReport,
 };

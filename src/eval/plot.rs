@@ -112,6 +112,28 @@ pub fn write_trajectory_plot(
     path: &Path,
     plane: PlotPlane,
 ) -> Result<()> {
+    write_trajectory_plot_with_links(gt, est, path, plane, &[])
+}
+
+/// The index of the estimate pose whose timestamp is nearest `t`.
+fn nearest_pose(est: &Trajectory, t: f64) -> Option<usize> {
+    est.timestamps
+        .iter()
+        .enumerate()
+        .min_by(|a, b| (a.1 - t).abs().total_cmp(&(b.1 - t).abs()))
+        .map(|(i, _)| i)
+}
+
+/// [`write_trajectory_plot`] with `links`, pairs of estimate timestamps
+/// (loop closures: the query and the matched frame), drawn as green lines
+/// between the two estimated positions.
+pub fn write_trajectory_plot_with_links(
+    gt: &Trajectory,
+    est: &Trajectory,
+    path: &Path,
+    plane: PlotPlane,
+    links: &[(f64, f64)],
+) -> Result<()> {
     ensure_font(path)?;
     let project = |t: &Trajectory| -> Vec<(f64, f64)> {
         t.poses
@@ -150,6 +172,27 @@ pub fn write_trajectory_plot(
         .map_err(|e| plot_error(path, e))?
         .label("estimate")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    let segments: Vec<Vec<(f64, f64)>> = links
+        .iter()
+        .filter_map(|(a, b)| {
+            let (i, j) = (nearest_pose(est, *a)?, nearest_pose(est, *b)?);
+            Some(vec![*e.get(i)?, *e.get(j)?])
+        })
+        .collect();
+    if !segments.is_empty() {
+        let green = RGBColor(0, 150, 0);
+        chart
+            .draw_series(
+                segments
+                    .into_iter()
+                    .map(|s| PathElement::new(s, green.stroke_width(3))),
+            )
+            .map_err(|e| plot_error(path, e))?
+            .label("loop closures")
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], green.stroke_width(3))
+            });
+    }
     if let Some(&start) = g.first() {
         chart
             .draw_series(std::iter::once(Circle::new(start, 6, BLACK.filled())))

@@ -12,9 +12,14 @@
 //! 4. the keyframe is inserted into the database.
 //!
 //! Read only on the map: the caller corrects the map with the accepted loop.
+//!
+//! The database is shared ([`SharedKeyframeDatabase`]): relocalisation
+//! queries it too ([`super::DatabaseRelocaliser`]). It is locked only for
+//! one insert, erase or query at a time, and cleared in place on a new map
+//! so that every holder sees the same one.
 
 use std::collections::HashSet;
-use std::sync::Arc;
+use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use crate::camera::StereoRig;
 use crate::error::{MapContext, SlamError};
@@ -83,10 +88,31 @@ struct PendingLoop {
     misses: usize,
 }
 
+/// The keyframe database of one map, shared by loop detection (which
+/// fills it) and relocalisation (which queries it).
+pub type SharedKeyframeDatabase = Arc<RwLock<KeyframeDatabase<KeyFrameId>>>;
+
+/// Reads the shared database. A poisoned lock is taken over: every
+/// operation under it (insert, erase, query, clear) leaves the database
+/// consistent, and its users run on the system's thread, where a panic
+/// ends the run anyway.
+pub(super) fn read_database(
+    database: &SharedKeyframeDatabase,
+) -> RwLockReadGuard<'_, KeyframeDatabase<KeyFrameId>> {
+    database.read().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// Writes the shared database (a poisoned lock as in [`read_database`]).
+pub(super) fn write_database(
+    database: &SharedKeyframeDatabase,
+) -> RwLockWriteGuard<'_, KeyframeDatabase<KeyFrameId>> {
+    database.write().unwrap_or_else(PoisonError::into_inner)
+}
+
 /// The detector's state: the database and a pending loop.
 pub struct LoopDetector {
     descriptor: Arc<dyn GlobalDescriptor>,
-    database: KeyframeDatabase<KeyFrameId>,
+    database: SharedKeyframeDatabase,
     thresholds: LoopThresholds,
     pending: Option<PendingLoop>,
 }
@@ -94,15 +120,15 @@ pub struct LoopDetector {
 impl std::fmt::Debug for LoopDetector {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("LoopDetector")
-            .field("keyframes", &self.database.len())
+            .field("keyframes", &self.database_len())
             .field("thresholds", &self.thresholds)
             .field("pending", &self.pending.is_some())
             .finish()
     }
 }
 
-/// The float rows of a keyframe, when it has float descriptors.
-fn float_rows(descriptors: &DescriptorSet) -> Option<&[f32]> {
+/// The float rows of a keyframe or frame, when it has float descriptors.
+pub(super) fn float_rows(descriptors: &DescriptorSet) -> Option<&[f32]> {
     match descriptors {
         DescriptorSet::Float { data, .. } if !data.is_empty() => Some(data),
         _ => None,
@@ -118,7 +144,7 @@ impl LoopDetector {
         let database = KeyframeDatabase::new(descriptor.dim()).in_stage("keyframe database")?;
         Ok(Self {
             descriptor,
-            database,
+            database: Arc::new(RwLock::new(database)),
             thresholds,
             pending: None,
         })
@@ -131,13 +157,20 @@ impl LoopDetector {
 
     /// Keyframes in the database.
     pub fn database_len(&self) -> usize {
-        self.database.len()
+        read_database(&self.database).len()
     }
 
-    /// Forgets every keyframe and the pending loop (a new map).
+    /// The database, shared (for relocalisation, see
+    /// [`super::DatabaseRelocaliser`]); [`Self::clear`] empties this same one.
+    pub fn shared_database(&self) -> SharedKeyframeDatabase {
+        Arc::clone(&self.database)
+    }
+
+    /// Forgets every keyframe and the pending loop (a new map). The
+    /// database is emptied in place: its sharers see the empty one.
     pub fn clear(&mut self) -> Result<(), SlamError> {
-        self.database =
-            KeyframeDatabase::new(self.descriptor.dim()).in_stage("keyframe database")?;
+        let empty = KeyframeDatabase::new(self.descriptor.dim()).in_stage("keyframe database")?;
+        *write_database(&self.database) = empty;
         self.pending = None;
         Ok(())
     }
@@ -174,8 +207,7 @@ impl LoopDetector {
             group_size: self.thresholds.group_size,
             ..QueryOptions::default()
         };
-        Ok(self
-            .database
+        Ok(read_database(&self.database)
             .query(descriptor, exclude, |k| map.best_covisible(k, 10), &options)
             .in_stage("keyframe database query")?
             .into_iter()
@@ -185,13 +217,13 @@ impl LoopDetector {
 
     /// Drops culled keyframes from the database.
     fn forget_culled(&mut self, map: &Map) {
-        let gone: Vec<KeyFrameId> = self
-            .database
+        let mut database = write_database(&self.database);
+        let gone: Vec<KeyFrameId> = database
             .keyframes()
             .filter(|k| map.keyframe(*k).is_err())
             .collect();
         for k in gone {
-            self.database.erase(k);
+            database.erase(k);
         }
     }
 
@@ -213,7 +245,7 @@ impl LoopDetector {
         } else if map.keyframe_count() >= self.thresholds.min_keyframes {
             outcome.accepted = self.detect(map, kf, &descriptor, rig, &mut outcome.rejected)?;
         }
-        self.database
+        write_database(&self.database)
             .insert(kf, &descriptor)
             .in_stage("keyframe database insert")?;
         Ok(outcome)

@@ -9,22 +9,35 @@
 //! system layer ([`crate::system`]) decides when it runs.
 //!
 //! - [`LoopDetector`]: database, candidates, verification, confirmation;
+//! - [`DatabaseRelocaliser`]: tracking's relocalisation candidates from
+//!   the detector's (shared) database;
 //! - [`verify_candidate`]: one candidate's check, stage by stage;
 //! - [`correct_loop`]: the correction;
-//! - [`build_essential_graph`] / [`optimise_essential_graph`]: the pose graph.
+//! - [`build_essential_graph`] / [`optimise_essential_graph`]: the pose graph;
+//! - [`snapshot_global_ba`] → [`solve_global_ba`] → [`apply_global_ba`]: the
+//!   global bundle adjustment after a correction.
 
 mod correct;
 mod detector;
 mod essential_graph;
+mod global_ba;
+mod relocalisation;
 mod thresholds;
 mod verify;
 
 pub use correct::{correct_loop, pose_difference, LoopCorrection};
-pub use detector::{AcceptedLoop, DetectionOutcome, LoopDetector, RejectedCandidate};
+pub use detector::{
+    AcceptedLoop, DetectionOutcome, LoopDetector, RejectedCandidate, SharedKeyframeDatabase,
+};
 pub use essential_graph::{
     build_essential_graph, optimise_essential_graph, EssentialGraph, EssentialGraphInput,
     EssentialGraphOutcome, MIN_ESSENTIAL_WEIGHT,
 };
+pub use global_ba::{
+    apply_global_ba, snapshot_global_ba, solve_global_ba, GlobalBaSnapshot, GlobalBaSummary,
+    SolvedGlobalBa, GLOBAL_BA_ITERATIONS,
+};
+pub use relocalisation::{DatabaseRelocaliser, RELOCALISATION_CANDIDATES};
 pub use thresholds::LoopThresholds;
 pub use verify::{
     confirm_with, verify_candidate, Confirmation, LoopStage, Verification, VerifiedLoop,

@@ -124,7 +124,8 @@ pub fn verify_candidate(
     let Some(ransac) = pnp_ransac(&frame, map, &matches, rig)? else {
         return rejected(LoopStage::Ransac, 0);
     };
-    if ransac.inliers < th.min_ransac_inliers {
+    let explained = ransac.inliers as f32 / matches.len() as f32;
+    if ransac.inliers < th.min_ransac_inliers || explained < th.min_ransac_inlier_ratio {
         return rejected(LoopStage::Ransac, ransac.inliers);
     }
     frame.pose_cw = ransac.pose_cw;
@@ -141,7 +142,19 @@ pub fn verify_candidate(
     }
     refine_pose(&mut frame, map, rig)?;
     search(&mut frame, map, &points, rig, 3.0)?;
+    let matched = frame.tracked_count();
     let inliers = refine_pose(&mut frame, map, rig)?;
+    tracing::debug!(
+        query = query.0,
+        candidate = candidate.0,
+        descriptor_matches = matches.len(),
+        ransac_inliers = ransac.inliers,
+        optimised,
+        projection_matches = found,
+        final_matches = matched,
+        inliers,
+        "loop candidate checked"
+    );
     if inliers < th.min_reprojection_inliers {
         return rejected(LoopStage::Reprojection, inliers);
     }

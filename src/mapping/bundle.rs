@@ -33,7 +33,9 @@ pub struct BundleSummary {
     pub aborted: bool,
 }
 
-fn keyframe_observation(map: &Map, kf: KeyFrameId, index: usize) -> Option<Observation> {
+/// A keyframe's measurement `index` as a BA observation (stereo when it
+/// has a depth), weighted by its octave's information.
+pub(crate) fn keyframe_observation(map: &Map, kf: KeyFrameId, index: usize) -> Option<Observation> {
     let kf = map.keyframe(kf).ok()?;
     let m = &kf.measurements;
     let kp = m.keypoints.get(index)?;

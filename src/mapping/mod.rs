@@ -18,6 +18,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, RwLockReadGuard, RwLockWriteGuard};
 use std::time::Instant;
 
+pub(crate) use bundle::keyframe_observation;
 pub use bundle::BundleSummary;
 pub(crate) use fuse::{apply_fusion_candidates, plan_fusion_into};
 

@@ -12,6 +12,7 @@ use crate::camera::StereoRig;
 use crate::error::SlamError;
 use crate::loop_closing::{
     correct_loop, AcceptedLoop, LoopCorrection, LoopDetector, LoopStage, LoopThresholds,
+    SharedKeyframeDatabase,
 };
 use crate::map::{KeyFrameId, Map, SharedMap};
 use crate::place::GlobalDescriptor;
@@ -88,6 +89,12 @@ impl LoopClosingStage {
     pub(crate) fn new_map(&mut self) -> Result<(), SlamError> {
         self.queue.clear();
         self.detector.clear()
+    }
+
+    /// The detector's keyframe database, shared (relocalisation queries it;
+    /// [`Self::new_map`] empties it in place).
+    pub(crate) fn shared_database(&self) -> SharedKeyframeDatabase {
+        self.detector.shared_database()
     }
 
     /// Accepted loops so far.

@@ -13,6 +13,7 @@
 //! sits above them all; nothing below imports from it.
 
 mod atlas;
+mod global_ba_thread;
 mod local_mapping_thread;
 mod loop_closing_stage;
 mod records;

@@ -11,7 +11,9 @@ use std::time::Instant;
 use crate::camera::StereoRig;
 use crate::error::SlamError;
 use crate::features::GrayImageView;
-use crate::loop_closing::LoopThresholds;
+use crate::loop_closing::{
+    apply_global_ba, DatabaseRelocaliser, GlobalBaSummary, LoopThresholds, SolvedGlobalBa,
+};
 use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
@@ -22,6 +24,7 @@ use crate::tracking::{
 };
 
 use super::atlas::{Atlas, MapIndex};
+use super::global_ba_thread::{run_global_ba, GlobalBaThread};
 use super::local_mapping_thread::{MappingResult, MappingThread};
 use super::loop_closing_stage::{LoopClosingStage, LoopRecord, RejectedLoopRecord};
 use super::records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
@@ -55,6 +58,8 @@ pub struct StereoSlam {
     atlas: Atlas,
     records: Vec<FrameRecord>,
     loop_closing: Option<LoopClosingStage>,
+    global_ba: Option<GlobalBaThread>,
+    global_ba_runs: Vec<GlobalBaSummary>,
 }
 
 impl StereoSlam {
@@ -70,18 +75,31 @@ impl StereoSlam {
             atlas: Atlas::new(),
             records: Vec::new(),
             loop_closing: None,
+            global_ba: None,
+            global_ba_runs: Vec::new(),
         }
     }
 
     /// Switches loop closing on, with `descriptor` for place recognition
     /// (a VLAD codebook, see [`crate::place::Codebook`]). Keyframes made
     /// before this call are not checked.
+    ///
+    /// Relocalisation then asks the same keyframe database for its
+    /// candidates ([`DatabaseRelocaliser`], as ORB-SLAM3's
+    /// `DetectRelocalizationCandidates`) instead of scanning the newest
+    /// keyframes; keyframes made before this call are not in it. The
+    /// tracker keeps the source over a reset or a new map, and the stage
+    /// empties the database in place on either.
     pub fn enable_loop_closing(
         &mut self,
         descriptor: Arc<dyn GlobalDescriptor>,
         thresholds: LoopThresholds,
     ) -> Result<(), SlamError> {
-        self.loop_closing = Some(LoopClosingStage::new(descriptor, thresholds)?);
+        let stage = LoopClosingStage::new(Arc::clone(&descriptor), thresholds)?;
+        let relocaliser = DatabaseRelocaliser::new(descriptor, stage.shared_database());
+        self.tracker
+            .set_relocalisation_candidates(Some(Arc::new(relocaliser)));
+        self.loop_closing = Some(stage);
         Ok(())
     }
 
@@ -110,16 +128,98 @@ impl StereoSlam {
             let Some(accepted) = stage.detect_next(&map, &self.rig)? else {
                 continue;
             };
+            // A running global BA works on poses the correction replaces.
+            self.abort_global_ba();
             let paused = self.pause_mapping()?;
             if let Some(stage) = self.loop_closing.as_mut() {
                 stage.correct(&map, &accepted, &self.rig)?;
             }
-            if let Some(mapper) = paused {
-                let thread = MappingThread::spawn(mapper, map)?;
-                let waiting = BTreeMap::new();
-                self.mapping = Mapping::Thread { thread, waiting };
-            }
+            self.resume_mapping(paused, &map)?;
+            self.start_global_ba(&map)?;
         }
+    }
+
+    /// Restarts the local-mapping thread paused by [`Self::pause_mapping`].
+    fn resume_mapping(
+        &mut self,
+        paused: Option<LocalMapper>,
+        map: &SharedMap,
+    ) -> Result<(), SlamError> {
+        if let Some(mapper) = paused {
+            let thread = MappingThread::spawn(mapper, map.clone())?;
+            let waiting = BTreeMap::new();
+            self.mapping = Mapping::Thread { thread, waiting };
+        }
+        Ok(())
+    }
+
+    /// The global BAs run after loop corrections (aborted ones included).
+    pub fn global_ba_runs(&self) -> &[GlobalBaSummary] {
+        &self.global_ba_runs
+    }
+
+    /// Aborts a running global BA (a new loop, a new map, a reset).
+    fn abort_global_ba(&mut self) {
+        if let Some(running) = self.global_ba.take() {
+            running.abort();
+            self.global_ba_runs.push(GlobalBaSummary {
+                aborted: true,
+                ..GlobalBaSummary::default()
+            });
+        }
+    }
+
+    /// Starts the global BA after a correction: on its own thread when
+    /// local mapping has one, else right here (deterministic runs).
+    fn start_global_ba(&mut self, map: &SharedMap) -> Result<(), SlamError> {
+        if matches!(self.mapping, Mapping::Thread { .. }) {
+            self.global_ba = Some(GlobalBaThread::spawn(map.clone(), self.rig)?);
+            return Ok(());
+        }
+        let never = std::sync::atomic::AtomicBool::new(false);
+        if let Some(solved) = run_global_ba(map, &self.rig, &never)? {
+            self.apply_global_ba(map, solved)?;
+        }
+        Ok(())
+    }
+
+    /// Applies a solved global BA with local mapping paused.
+    fn apply_global_ba(
+        &mut self,
+        map: &SharedMap,
+        solved: SolvedGlobalBa,
+    ) -> Result<(), SlamError> {
+        let paused = self.pause_mapping()?;
+        let summary = {
+            let mut m = map.write().map_err(|_| SlamError::PoisonedMap)?;
+            apply_global_ba(&mut m, solved)
+        };
+        tracing::info!(
+            keyframes = summary.keyframes,
+            points = summary.points,
+            propagated = summary.propagated_keyframes,
+            solve_ms = summary.solve_ms,
+            "global BA applied"
+        );
+        self.global_ba_runs.push(summary);
+        self.resume_mapping(paused, map)
+    }
+
+    /// Applies the background global BA when it has finished (or, with
+    /// `wait`, waits for it).
+    fn poll_global_ba(&mut self, wait: bool) -> Result<(), SlamError> {
+        let Some(running) = self.global_ba.take() else {
+            return Ok(());
+        };
+        if !wait && !running.is_finished() {
+            self.global_ba = Some(running);
+            return Ok(());
+        }
+        let map = running.map.clone();
+        if let Some(solved) = running.join()? {
+            self.apply_global_ba(&map, solved)?;
+        }
+        Ok(())
     }
 
     /// Stops the local-mapping thread after its queue (its results are
@@ -209,7 +309,7 @@ impl StereoSlam {
             *mapper = mapper.fresh();
         }
         self.atlas = Atlas::new();
-        self.tracker = Tracker::new(self.rig);
+        self.tracker = self.tracker.fresh();
         self.records.clear();
         if let Some(stage) = self.loop_closing.as_mut() {
             stage.new_map()?;
@@ -237,7 +337,8 @@ impl StereoSlam {
         let (mapper, results) = thread.finish()?;
         self.mapping = Mapping::Inline(mapper);
         self.attach(results, &mut waiting)?;
-        self.close_loops()
+        self.close_loops()?;
+        self.poll_global_ba(true)
     }
 
     /// Files local mapping's results under the frames that made the keyframes.
@@ -273,7 +374,8 @@ impl StereoSlam {
             *w = waiting;
         }
         attached?;
-        self.close_loops()
+        self.close_loops()?;
+        self.poll_global_ba(false)
     }
 
     /// Gives the active map up and starts a new one from frame `index`:
@@ -294,7 +396,7 @@ impl StereoSlam {
             map = new_map,
             "tracking lost for good: new map"
         );
-        self.tracker = Tracker::new(self.rig);
+        self.tracker = self.tracker.fresh();
         if threaded {
             self.spawn_mapping_thread()?;
         }

@@ -9,8 +9,13 @@
 //! The driver that runs tracking with local mapping over an atlas of maps
 //! is [`crate::system::StereoSlam`]; tracking imports nothing from it.
 //!
-//! Bag-of-words place recognition is not used: tracking the reference
-//! keyframe and relocalisation match descriptors by brute force.
+//! Bag-of-words place recognition is not used here: tracking the reference
+//! keyframe and relocalisation match descriptors by brute force. Which
+//! keyframes relocalisation tries comes through the
+//! [`RelocalisationCandidates`] seam ([`Tracker::set_relocalisation_candidates`]):
+//! the loop-closing keyframe database when loop closing is on
+//! (`crate::loop_closing::DatabaseRelocaliser`), else the newest
+//! [`MAX_SCANNED_KEYFRAMES`] keyframes.
 
 mod frame;
 mod frontend;
@@ -28,7 +33,7 @@ pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use motion::MOTION_MODEL_RADIUS;
 pub(crate) use pose::refine_pose;
 pub(crate) use relocalise::pnp_ransac;
-pub use relocalise::MIN_RELOCALISATION_INLIERS;
+pub use relocalise::{RelocalisationCandidates, MAX_SCANNED_KEYFRAMES, MIN_RELOCALISATION_INLIERS};
 pub(crate) use search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
 pub use tracker::{
     TrackOutcome, Tracker, TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S,

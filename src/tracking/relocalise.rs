@@ -1,5 +1,10 @@
 //! Relocalisation: descriptor matches against keyframes' points, a PnP
 //! RANSAC pose (OpenCV), then pose-only refinement.
+//!
+//! The keyframes tried come from a [`RelocalisationCandidates`] source when
+//! the tracker has one (the place-recognition database of loop closing,
+//! as ORB-SLAM3's `KeyFrameDatabase::DetectRelocalizationCandidates`), else
+//! from a scan of the [`MAX_SCANNED_KEYFRAMES`] newest keyframes.
 
 use std::collections::BTreeSet;
 
@@ -17,10 +22,32 @@ use super::search::{match_descriptors, match_projected, visible_in_frame, Visibl
 use crate::camera::StereoRig;
 use crate::error::{MapContext, SlamError};
 
-/// Keyframes tried, newest first.
-const MAX_CANDIDATES: usize = 30;
+/// Keyframes tried, newest first, without a candidate source.
+pub const MAX_SCANNED_KEYFRAMES: usize = 30;
 /// Inliers needed to accept a relocalisation (ORB-SLAM3: 50).
 pub const MIN_RELOCALISATION_INLIERS: usize = 50;
+
+/// Where relocalisation gets the keyframes to try: a place-recognition
+/// query by the lost frame's appearance (ORB-SLAM3's
+/// `DetectRelocalizationCandidates`). Tracking knows only this seam; the
+/// implementation lives with the database (see
+/// `crate::loop_closing::DatabaseRelocaliser`).
+pub trait RelocalisationCandidates: Send + Sync + std::fmt::Debug {
+    /// Keyframes of `map` that may see what `frame` sees, best first.
+    /// `Some` list is all relocalisation tries: an empty one (nothing
+    /// similar, or a failed query, which the implementation reports
+    /// itself) makes it fail on this frame. `None` means the source cannot
+    /// judge this frame (say binary descriptors, or nothing stored yet):
+    /// relocalisation scans the newest keyframes instead. Called under the
+    /// map's read lock.
+    fn candidates(&self, frame: &Frame, map: &Map) -> Option<Vec<KeyFrameId>>;
+}
+
+/// The [`MAX_SCANNED_KEYFRAMES`] newest keyframes of `map`, newest first.
+fn newest_keyframes(map: &Map) -> Vec<KeyFrameId> {
+    let ids: Vec<KeyFrameId> = map.keyframes().map(|kf| kf.id()).collect();
+    ids.into_iter().rev().take(MAX_SCANNED_KEYFRAMES).collect()
+}
 
 /// A RANSAC pose and how many matches agree with it.
 #[derive(Debug, Clone, Copy)]
@@ -121,18 +148,43 @@ fn widen_by_projection(
     Ok(inliers)
 }
 
-/// ORB-SLAM3's `Relocalization` without bag-of-words: tries the newest
-/// keyframes; accepts the first pose with at least 50 inliers.
+/// ORB-SLAM3's `Relocalization` without bag-of-words: tries the
+/// [`MAX_SCANNED_KEYFRAMES`] newest keyframes; accepts the first pose with
+/// at least 50 inliers.
 pub(crate) fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool, SlamError> {
-    let candidates: Vec<KeyFrameId> = map
-        .keyframes()
-        .map(|kf| kf.id())
-        .collect::<Vec<_>>()
-        .into_iter()
-        .rev()
-        .take(MAX_CANDIDATES)
-        .collect();
-    for kf in candidates {
+    relocalise_among(frame, map, rig, &newest_keyframes(map))
+}
+
+/// ORB-SLAM3's `Relocalization`: tries the keyframes `source` gives
+/// (best first) when there is one and it judges the frame, else the newest
+/// ones ([`relocalise`]).
+pub(crate) fn relocalise_with(
+    frame: &mut Frame,
+    map: &Map,
+    rig: &StereoRig,
+    source: Option<&dyn RelocalisationCandidates>,
+) -> Result<bool, SlamError> {
+    match source.and_then(|s| s.candidates(frame, map)) {
+        Some(candidates) => relocalise_among(frame, map, rig, &candidates),
+        None => relocalise(frame, map, rig),
+    }
+}
+
+/// Tries `candidates` in order (a keyframe no longer in the map, or named
+/// twice, is skipped): descriptor matches with its points, PnP RANSAC,
+/// pose-only refinement, and a search by projection when 10–49 inliers
+/// remain; accepts the first pose with at least 50 inliers.
+fn relocalise_among(
+    frame: &mut Frame,
+    map: &Map,
+    rig: &StereoRig,
+    candidates: &[KeyFrameId],
+) -> Result<bool, SlamError> {
+    let mut tried = BTreeSet::new();
+    for &kf in candidates {
+        if !tried.insert(kf) {
+            continue;
+        }
         let Ok(keyframe) = map.keyframe(kf) else {
             continue;
         };

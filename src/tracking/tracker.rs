@@ -1,6 +1,8 @@
 //! The tracking state machine: initialise, track (motion model, reference
 //! keyframe, relocalisation), track the local map, decide on keyframes.
 
+use std::sync::Arc;
+
 use crate::map::{KeyFrameId, Map, MapPointId, SharedMap};
 use crate::optim::{LieGroup, Se3};
 
@@ -8,7 +10,7 @@ use super::frame::Frame;
 use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext};
 use super::local_map::track_local_map;
 use super::motion::{track_reference_keyframe, track_with_motion_model};
-use super::relocalise::{relocalise, MIN_RELOCALISATION_INLIERS};
+use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
 use crate::camera::StereoRig;
 use crate::error::{MapContext, SlamError};
 
@@ -68,6 +70,8 @@ pub struct Tracker {
     /// Index of the first frame of the current loss.
     lost_since: Option<usize>,
     max_frames: usize,
+    /// Where relocalisation's keyframes come from; `None`: the newest ones.
+    relocalisation_candidates: Option<Arc<dyn RelocalisationCandidates>>,
 }
 
 /// Seconds of failed relocalisation after which tracking gives the map up
@@ -98,7 +102,34 @@ impl Tracker {
             last_relocalisation_frame: None,
             lost_since: None,
             max_frames: rig.fps.round().max(1.0) as usize,
+            relocalisation_candidates: None,
         }
+    }
+
+    /// A new, uninitialised tracker for the same rig that keeps this one's
+    /// relocalisation candidate source (a reset, a new map).
+    pub fn fresh(&self) -> Self {
+        let mut tracker = Self::new(self.rig);
+        tracker.relocalisation_candidates = self.relocalisation_candidates.clone();
+        tracker
+    }
+
+    /// Where relocalisation gets the keyframes it tries: `Some(source)`
+    /// asks it (best first, e.g. the loop-closing keyframe database);
+    /// `None` (the default) tries the newest
+    /// [`MAX_SCANNED_KEYFRAMES`](super::relocalise::MAX_SCANNED_KEYFRAMES)
+    /// keyframes.
+    pub fn set_relocalisation_candidates(
+        &mut self,
+        source: Option<Arc<dyn RelocalisationCandidates>>,
+    ) {
+        self.relocalisation_candidates = source;
+    }
+
+    /// Whether relocalisation asks a candidate source (see
+    /// [`Self::set_relocalisation_candidates`]).
+    pub fn has_relocalisation_candidates(&self) -> bool {
+        self.relocalisation_candidates.is_some()
     }
 
     /// The current state.
@@ -173,7 +204,12 @@ impl Tracker {
             .is_some_and(|r| frame.index < r + self.max_frames);
         let (mut method, doubtful) = if self.state == TrackingState::Ok {
             self.track_frame_to_frame(&mut frame, map)?
-        } else if relocalise(&mut frame, map, &self.rig)? {
+        } else if relocalise_with(
+            &mut frame,
+            map,
+            &self.rig,
+            self.relocalisation_candidates.as_deref(),
+        )? {
             self.last_relocalisation_frame = Some(frame.index);
             (TrackingMethod::Relocalisation, false)
         } else {

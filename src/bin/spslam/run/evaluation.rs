@@ -7,8 +7,8 @@ use std::path::Path;
 use anyhow::Result;
 use spslam::eval::{
     align, evaluate, report::pair_trajectories, table::report_table, write_error_plot,
-    write_trajectory_plot, Alignment, EvalOptions, EvalReport, Pairing, PlotPlane, Trajectory,
-    DEFAULT_MAX_DIFF,
+    write_trajectory_plot_with_links, Alignment, EvalOptions, EvalReport, Pairing, PlotPlane,
+    Trajectory, DEFAULT_MAX_DIFF,
 };
 
 use super::source::Source;
@@ -56,6 +56,7 @@ pub fn evaluate_run(
     gt: &Trajectory,
     trajectory: &Trajectory,
     out: &Path,
+    links: &[(f64, f64)],
     text: &mut String,
 ) -> Result<(Option<EvalReport>, Option<Drift>)> {
     let pairing = if source.is_kitti() {
@@ -104,7 +105,7 @@ pub fn evaluate_run(
     };
     let plot = out.join("trajectory.png");
     let errors = out.join("trajectory_errors.png");
-    write_trajectory_plot(&pair.reference, &estimate, &plot, plane)?;
+    write_trajectory_plot_with_links(&pair.reference, &estimate, &plot, plane, links)?;
     write_error_plot(&pair.reference, &estimate, &errors)?;
     text.push_str(&format!(
         "plots: {} and {}\n",

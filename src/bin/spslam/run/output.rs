@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, Context, Result};
 use spslam::eval::{write_kitti, write_tum, EvalReport, Trajectory};
+use spslam::loop_closing::GlobalBaSummary;
 use spslam::optim::Se3;
 use spslam::settings::SlamSettings;
 use spslam::system::{FrameRecord, LoopRecord, RejectedLoopRecord, SlamSummary, StereoSlam};
@@ -67,6 +68,8 @@ struct RunReport<'a> {
     /// Loop candidates that passed the descriptor stage and were rejected
     /// later, with the stage and the count reached there.
     rejected_loops: &'a [RejectedLoopRecord],
+    /// The global bundle adjustments run after the corrections.
+    global_ba: &'a [GlobalBaSummary],
     frames: &'a [FrameRecord],
 }
 
@@ -94,6 +97,20 @@ fn status_line(end: &RunEnd, processed: usize, total: usize, unreadable: usize) 
             "run INCOMPLETE (failed: {error}): {processed} of {total} frames processed{skipped}; the outputs cover those\n"
         ),
     }
+}
+
+/// The accepted loops as pairs of frame timestamps, for the plot.
+fn loop_links(slam: &StereoSlam) -> Vec<(f64, f64)> {
+    let time = |frame: usize| {
+        slam.records()
+            .iter()
+            .find(|r| r.index == frame)
+            .map(|r| r.timestamp)
+    };
+    slam.loops()
+        .iter()
+        .filter_map(|l| Some((time(l.query_frame)?, time(l.match_frame)?)))
+        .collect()
 }
 
 /// One line per accepted loop, and the rejected candidates' count by stage.
@@ -224,6 +241,16 @@ impl RunOutputs<'_> {
             }
         };
         text.push_str(&loops_text(slam.loops(), slam.rejected_loops()));
+        for g in slam.global_ba_runs() {
+            text.push_str(&if g.aborted {
+                "global BA: aborted by a newer loop\n".to_string()
+            } else {
+                format!(
+                    "global BA: {} keyframes, {} points, {} observations in {:.0} ms; {} keyframes made meanwhile moved with their parents\n",
+                    g.keyframes, g.points, g.observations, g.solve_ms, g.propagated_keyframes
+                )
+            });
+        }
         for u in unreadable {
             text.push_str(&format!(
                 "unreadable frame {} (skipped, counted as lost): {}: {}\n",
@@ -231,7 +258,7 @@ impl RunOutputs<'_> {
             ));
         }
         let (evaluation, drift) = match &trajectory {
-            Some(t) => match self.evaluate(t, end, &mut text) {
+            Some(t) => match self.evaluate(t, end, &loop_links(slam), &mut text) {
                 Ok(found) => found,
                 Err(e) => {
                     text.push_str(&format!("evaluation failed: {e:#}\n"));
@@ -266,6 +293,7 @@ impl RunOutputs<'_> {
             drift,
             loops: slam.loops(),
             rejected_loops: slam.rejected_loops(),
+            global_ba: slam.global_ba_runs(),
             frames: records,
         };
         keep(self.write_json(&report), &mut problems);
@@ -296,6 +324,7 @@ impl RunOutputs<'_> {
         &self,
         trajectory: &Trajectory,
         end: &RunEnd,
+        links: &[(f64, f64)],
         text: &mut String,
     ) -> Result<(Option<EvalReport>, Option<Drift>)> {
         let Some(gt) = self.source.ground_truth(trajectory.len())? else {
@@ -307,7 +336,7 @@ impl RunOutputs<'_> {
                 trajectory.len()
             ));
         }
-        evaluate_run(self.source, &gt, trajectory, self.out, text)
+        evaluate_run(self.source, &gt, trajectory, self.out, links, text)
     }
 
     /// `report.json`.
