@@ -166,13 +166,22 @@ fn bad_input_and_a_foreign_codebook_fail_with_a_message() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("broken.png"), "{stderr}");
 
-    // A codebook trained with other settings (300 features) is refused.
+    // A codebook trained for other descriptors (the fp32 network; the
+    // default is int8) is refused. The feature count does not matter.
     let book = dir.join("small.spvlad");
     let out = spslam()
         .args([
             "vocab", "train", "--format", "vlad", "--k", "4", "--pca", "2",
         ])
-        .args(["--max-images", "3", "--features", "300", "--images"])
+        .args([
+            "--max-images",
+            "3",
+            "--features",
+            "300",
+            "--precision",
+            "fp32",
+        ])
+        .arg("--images")
         .arg(root.join("kitti/sequences/06/image_0"))
         .arg("--out")
         .arg(&book)
@@ -185,6 +194,7 @@ fn bad_input_and_a_foreign_codebook_fail_with_a_message() {
     assert_eq!(codebook.vlad.dim(), 2);
     let settings = ExtractorSettings {
         n_features: 300,
+        precision: spslam::features::Precision::Fp32,
         ..ExtractorSettings::default()
     };
     let expected: ExtractorConfig = settings.superpoint_config(DEFAULT_SUPERPOINT_LEVELS, 1);

@@ -20,7 +20,7 @@ use common::synthetic_slam::{images, rig_of, small_sequence};
 use spslam::dataset::synthetic::{SceneName, SyntheticSequence};
 use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
 use spslam::loop_closing::LoopThresholds;
-use spslam::place::{default_codebook_path, Codebook};
+use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::ExtractorSettings;
 use spslam::system::{LoopRecord, StereoSlam};
 use spslam::tracking::StereoFrontend;
@@ -45,7 +45,7 @@ fn run(sequence: &SyntheticSequence, loop_closing: bool) -> Run {
     let sp = || Box::new(common::extractor(config.clone()));
     let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
     if loop_closing {
-        let codebook = ok(Codebook::load_for(&default_codebook_path(), &config));
+        let codebook = ok(Codebook::load_for(&default_codebook_for(&config), &config));
         ok(slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default()));
     }
     let first = sequence.pose(0).inverse();

@@ -268,8 +268,28 @@ fn temporary_path(path: &Path) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// The codebook used for an extractor when none is given:
+/// `SPSLAM_CODEBOOK`, else the one shipped for its precision under the
+/// crate root's `models/`: `vlad_k64.spvlad` (int8, the default) or
+/// `vlad_k64_fp32.spvlad` (fp32), trained on the same frames.
+pub fn default_codebook_for(config: &ExtractorConfig) -> PathBuf {
+    let name = match config.precision {
+        crate::features::Precision::Fp32 => "vlad_k64_fp32.spvlad",
+        crate::features::Precision::Int8 => "vlad_k64.spvlad",
+    };
+    std::env::var_os("SPSLAM_CODEBOOK")
+        .filter(|p| !p.is_empty())
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+                .join("models")
+                .join(name)
+        })
+}
+
 /// The codebook used when none is given: `SPSLAM_CODEBOOK`, else
-/// `models/vlad_k64.spvlad` under the crate root (shipped in the repository).
+/// `models/vlad_k64.spvlad` under the crate root (shipped in the repository;
+/// for the int8 network, the default: see [`default_codebook_for`]).
 pub fn default_codebook_path() -> PathBuf {
     std::env::var_os("SPSLAM_CODEBOOK")
         .filter(|p| !p.is_empty())

@@ -32,7 +32,9 @@ mod rows;
 pub mod vlad;
 mod vocabulary_tree;
 
-pub use codebook::{default_codebook_path, extractor_settings_hash, Codebook};
+pub use codebook::{
+    default_codebook_for, default_codebook_path, extractor_settings_hash, Codebook,
+};
 pub use database::{Candidate, KeyframeDatabase, QueryOptions};
 pub use error::PlaceError;
 pub use global_descriptor::GlobalDescriptor;

@@ -150,10 +150,11 @@ pub fn untracked(records: &[spslam::system::FrameRecord]) -> Vec<usize> {
         .collect()
 }
 
-/// Switches loop closing on with the default codebook (`models/vlad_k64.spvlad`
-/// or `SPSLAM_CODEBOOK`), as `spslam run` does, for extractor `config`.
+/// Switches loop closing on with the default codebook for extractor `config`
+/// (`SPSLAM_CODEBOOK`, else `models/vlad_k64.spvlad` for int8 and
+/// `models/vlad_k64_fp32.spvlad` for fp32), as `spslam run` does.
 pub fn enable_loop_closing(slam: &mut spslam::system::StereoSlam, config: &ExtractorConfig) {
-    let path = spslam::place::default_codebook_path();
+    let path = spslam::place::default_codebook_for(config);
     let codebook = spslam::place::Codebook::load_for(&path, config)
         .unwrap_or_else(|e| panic!("codebook {}: {e}", path.display()));
     slam.enable_loop_closing(

@@ -29,7 +29,7 @@ use spslam::features::{
     AnmsMethod, Device, FeatureExtractor, OrbConfig, OrbExtractor, Precision, SuperPointExtractor,
 };
 use spslam::loop_closing::LoopThresholds;
-use spslam::place::{default_codebook_path, Codebook};
+use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::SlamSettings;
 use spslam::system::StereoSlam;
 use spslam::tracking::StereoFrontend;
@@ -105,7 +105,8 @@ pub struct RunArgs {
     /// ORB's binary descriptors have no VLAD codebook, so ORB runs never close loops).
     #[arg(long)]
     no_loop_closing: bool,
-    /// The VLAD codebook for loop closing [default: SPSLAM_CODEBOOK, else models/vlad_k64.spvlad].
+    /// The VLAD codebook for loop closing [default: SPSLAM_CODEBOOK, else
+    /// models/vlad_k64.spvlad, or models/vlad_k64_fp32.spvlad with fp32].
     #[arg(long)]
     codebook: Option<PathBuf>,
     /// Stop at the first frame that cannot be read instead of skipping it
@@ -200,7 +201,10 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     if !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         let config = settings.extractor.superpoint_config(levels, cores / 2);
-        let path = args.codebook.clone().unwrap_or_else(default_codebook_path);
+        let path = args
+            .codebook
+            .clone()
+            .unwrap_or_else(|| default_codebook_for(&config));
         let codebook = Codebook::load_for(&path, &config).with_context(|| {
             format!(
                 "cannot use the loop-closing codebook {} (train one with `spslam vocab train --format vlad`, or run with --no-loop-closing)",
