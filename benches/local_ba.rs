@@ -10,14 +10,35 @@
 //!   or 11 LM iterations (tolerances 0); the time per iteration is their
 //!   difference over 10 (setup and the outlier pass cancel);
 //! - `pose_only/...`: ORB-SLAM3's 4×10 pose optimisation of one frame
-//!   from σ 1°/2 cm.
+//!   from σ 1°/2 cm;
+//! - `reduced_system_crossover/{dense,sparse}/K`: the default local BA
+//!   (two stages) of a window of K free poses (`synthetic_ba` scene, K + 2
+//!   keyframes, 250 points per keyframe, first two fixed, from σ 1°/2 cm)
+//!   on the dense and on the sparse reduced camera system (both take the
+//!   same iterations): where the sparse path starts to pay
+//!   ([`LocalBaConfig::sparse_min_free_poses`]);
+//! - `global_ba_chain_K/...`: global-BA-sized chains of K free poses
+//!   (`chain_scene`: K + 2 keyframes 0.8 m apart, heading oscillating
+//!   ±0.1 rad, 30 points per keyframe each seen by 3–5 consecutive
+//!   keyframes, half stereo), first two fixed, from σ 1°/2 cm and 5 cm: `sparse_solve` runs global BA's
+//!   schedule (10 robust iterations, no second stage, as
+//!   `loop_closing::global_ba`) on the sparse path, `dense_solve` the same
+//!   on the dense path, `{sparse,dense}_one_iteration` one LM iteration on
+//!   each path (the dense ones only at 300 free poses: 1,800 × 1,800 dense
+//!   Cholesky; at 1,000 the dense `S` alone would take 288 MB per chunk).
 //!
-//! Run: `cargo bench --bench local_ba`.
+//! Run: `cargo bench --bench local_ba` (some groups only:
+//! `cargo bench --bench local_ba -- 'reduced_system_crossover|global_ba_chain'`).
 use std::time::Duration;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use spslam::optim::local_ba::{local_bundle_adjustment, LocalBaConfig};
+use nalgebra::{UnitQuaternion, Vector3};
+use spslam::optim::local_ba::{
+    local_bundle_adjustment, BaObservation, LocalBaConfig, ReducedSystemSolver,
+};
 use spslam::optim::pose_only::{optimise_pose, PoseOnlyConfig};
+use spslam::optim::reprojection::{inv_level_sigma2, Observation};
+use spslam::optim::{LieGroup, Se3};
 
 #[path = "../tests/common/rng.rs"]
 mod rng;
@@ -25,7 +46,7 @@ mod rng;
 #[path = "../tests/common/synthetic_ba.rs"]
 mod synthetic_ba;
 
-use synthetic_ba::{perturb, Rng, Scene, SceneSpec};
+use synthetic_ba::{kitti_camera, perturb, Rng, Scene, SceneSpec, SCALE_FACTOR};
 
 fn scene(keyframes: usize, points: usize) -> Scene {
     Scene::new(&SceneSpec {
@@ -110,5 +131,177 @@ fn pose_only(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, local_ba, pose_only);
+/// A long chain of keyframes (see the module docs; the same generator as
+/// `tests/optim_local_ba.rs`): forward 0.8 m apart, the heading oscillating
+/// instead of turning round, so points stay in front of the 3–5
+/// consecutive keyframes that see them.
+fn chain_scene(keyframes: usize, points_per_keyframe: usize, seed: u64) -> Scene {
+    let mut rng = Rng::new(seed);
+    let camera = kitti_camera();
+    let poses: Vec<Se3> = (0..keyframes)
+        .map(|k| {
+            let s = k as f64;
+            let centre = Vector3::new(0.3 * (0.4 * s).sin(), 0.05 * (0.7 * s).cos(), 0.8 * s);
+            let r_wc = UnitQuaternion::from_euler_angles(
+                0.01 * (0.3 * s).sin(),
+                0.1 * (0.05 * s).sin(),
+                0.0,
+            );
+            Se3::new(r_wc, centre).inverse()
+        })
+        .collect();
+    let n_points = keyframes * points_per_keyframe;
+    let mut points = Vec::with_capacity(n_points);
+    let mut observations = Vec::new();
+    for index in 0..n_points {
+        let seen_by = rng.int(3, 5).min(keyframes);
+        let first = rng.int(0, keyframes - seen_by);
+        let reference = &poses[first + seen_by - 1];
+        let (u, v, z) = (
+            rng.range(0.0, 1241.0),
+            rng.range(0.0, 376.0),
+            rng.range(4.0, 30.0),
+        );
+        let p_cam = Vector3::new(
+            (u - camera.cx) / camera.fx * z,
+            (v - camera.cy) / camera.fy * z,
+            z,
+        );
+        let point = reference.inverse().transform_point(&p_cam);
+        points.push(point);
+        for (pose, camera_pose) in poses.iter().enumerate().skip(first).take(seen_by) {
+            let octave = rng.int(0, 3) as u32;
+            let information = inv_level_sigma2(SCALE_FACTOR, octave);
+            let sigma = 0.5 / information.sqrt();
+            let mut m = camera.project_stereo(&camera_pose.transform_point(&point));
+            m.x += sigma * rng.normal();
+            m.y += sigma * rng.normal();
+            m.z += sigma * rng.normal();
+            let obs = if rng.uniform() < 0.5 {
+                Observation::stereo(m.x, m.y, m.z, information)
+            } else {
+                Observation::mono(m.x, m.y, information)
+            };
+            observations.push(BaObservation {
+                pose,
+                point: index,
+                obs,
+            });
+        }
+    }
+    let is_outlier = vec![false; observations.len()];
+    Scene {
+        camera,
+        poses,
+        points,
+        observations,
+        is_outlier,
+    }
+}
+
+/// One robust LM iteration and no second stage, on the given path.
+fn one_iteration(reduced_solver: ReducedSystemSolver) -> LocalBaConfig {
+    LocalBaConfig {
+        first_stage_iterations: 1,
+        second_stage_iterations: 0,
+        relative_cost_tolerance: 0.0,
+        relative_step_tolerance: 0.0,
+        reduced_solver,
+        ..LocalBaConfig::default()
+    }
+}
+
+fn reduced_system_crossover(c: &mut Criterion) {
+    let mut g = c.benchmark_group("reduced_system_crossover");
+    g.sample_size(10).measurement_time(Duration::from_secs(2));
+    for keyframes in [12, 22, 32, 42, 52, 62, 82] {
+        let scene = scene(keyframes, 250 * keyframes);
+        let start = scene.noisy_problem(&[0, 1], 1.0, 0.02, 0.05, 3);
+        for (name, reduced_solver) in [
+            ("dense", ReducedSystemSolver::Dense),
+            ("sparse", ReducedSystemSolver::Sparse),
+        ] {
+            let config = LocalBaConfig {
+                reduced_solver,
+                ..LocalBaConfig::default()
+            };
+            g.bench_function(format!("{name}/{}", keyframes - 2), |b| {
+                b.iter(|| {
+                    let mut p = start.clone();
+                    local_bundle_adjustment(black_box(&mut p), &config).expect("solves")
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+fn global_ba_chain(c: &mut Criterion) {
+    for keyframes in [302, 1002] {
+        let scene = chain_scene(keyframes, 30, 51);
+        let start = scene.noisy_problem(&[0, 1], 1.0, 0.02, 0.05, 3);
+        // loop_closing::global_ba's schedule.
+        let global = LocalBaConfig {
+            first_stage_iterations: 10,
+            second_stage_iterations: 0,
+            reduced_solver: ReducedSystemSolver::Sparse,
+            ..LocalBaConfig::default()
+        };
+        let mut probe = start.clone();
+        let report = local_bundle_adjustment(&mut probe, &global).expect("solves");
+        println!(
+            "chain {keyframes} kf / {} points / {} observations: {} iterations ({} solves, {:?}), cost {:.1} -> {:.1}",
+            start.points.len(),
+            start.observations.len(),
+            report.first_stage.iterations,
+            report.first_stage.solves,
+            report.first_stage.termination,
+            report.first_stage.initial_cost,
+            report.first_stage.final_cost,
+        );
+        let mut g = c.benchmark_group(format!("global_ba_chain_{}", keyframes - 2));
+        g.sample_size(10).measurement_time(Duration::from_secs(5));
+        g.bench_function("sparse_solve", |b| {
+            b.iter(|| {
+                let mut p = start.clone();
+                local_bundle_adjustment(black_box(&mut p), &global).expect("solves")
+            })
+        });
+        let sparse_one = one_iteration(ReducedSystemSolver::Sparse);
+        g.bench_function("sparse_one_iteration", |b| {
+            b.iter(|| {
+                let mut p = start.clone();
+                local_bundle_adjustment(black_box(&mut p), &sparse_one).expect("solves")
+            })
+        });
+        if keyframes <= 302 {
+            let dense_global = LocalBaConfig {
+                reduced_solver: ReducedSystemSolver::Dense,
+                ..global
+            };
+            g.bench_function("dense_solve", |b| {
+                b.iter(|| {
+                    let mut p = start.clone();
+                    local_bundle_adjustment(black_box(&mut p), &dense_global).expect("solves")
+                })
+            });
+            let dense_one = one_iteration(ReducedSystemSolver::Dense);
+            g.bench_function("dense_one_iteration", |b| {
+                b.iter(|| {
+                    let mut p = start.clone();
+                    local_bundle_adjustment(black_box(&mut p), &dense_one).expect("solves")
+                })
+            });
+        }
+        g.finish();
+    }
+}
+
+criterion_group!(
+    benches,
+    local_ba,
+    pose_only,
+    reduced_system_crossover,
+    global_ba_chain
+);
 criterion_main!(benches);

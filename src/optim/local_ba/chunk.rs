@@ -6,6 +6,7 @@ use std::ops::Range;
 use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Matrix6x3, Vector3, Vector6};
 
 use super::layout::Layout;
+use super::sparse_schur::ReducedPattern;
 use crate::optim::reprojection::{PinholeStereo, PoseMatrix};
 
 /// What the workers read during a pass (shared, read-only).
@@ -20,6 +21,8 @@ pub(super) struct PassInputs<'a> {
     pub robust: bool,
     /// The current points.
     pub points: &'a [Vector3<f64>],
+    /// The sparse reduced system's pattern, on the sparse path.
+    pub reduced_pattern: Option<&'a ReducedPattern>,
 }
 
 /// Scalars a chunk accumulates during a pass.
@@ -27,7 +30,8 @@ pub(super) struct PassInputs<'a> {
 pub(super) struct ChunkSums {
     /// Kernel cost of the chunk's active observations.
     pub cost: f64,
-    /// A damped point block could not be inverted.
+    /// A damped point block could not be inverted (or, on the sparse path,
+    /// a pose pair had no block: the pattern did not match, never expected).
     pub singular: bool,
     /// `|δp|²` over the chunk's points.
     pub step_norm_squared: f64,
@@ -46,8 +50,37 @@ pub(super) struct ScaledBlock {
     pub free_pose: usize,
     /// Index of the observation within the chunk.
     pub local_observation: usize,
+    /// Rank among the point's observations from free poses (inactive ones
+    /// included): its index in the sparse path's per-point pair table.
+    pub rank: usize,
     /// `W V⁻¹` (6×3).
     pub block: Matrix6x3<f64>,
+}
+
+/// `Y Wᵀ` (6×3 · 3×6), written out so it is inlined into the Schur passes
+/// of both paths (nalgebra's generic product was not inlined into the
+/// sparse pass and took a fifth of its iteration time) and both form
+/// bitwise the same blocks.
+#[inline(always)]
+pub(super) fn outer_product(y: &Matrix6x3<f64>, w: &Matrix6x3<f64>) -> Matrix6<f64> {
+    let mut out = Matrix6::zeros();
+    for c in 0..6 {
+        let (w0, w1, w2) = (w[(c, 0)], w[(c, 1)], w[(c, 2)]);
+        for r in 0..6 {
+            out[(r, c)] = y[(r, 0)] * w0 + y[(r, 1)] * w1 + y[(r, 2)] * w2;
+        }
+    }
+    out
+}
+
+/// This chunk's part of `−Σ W V⁻¹ Wᵀ`.
+#[derive(Debug, Clone)]
+pub(super) enum ReducedPart {
+    /// Dense `6k×6k` (upper block triangle only; the dense path).
+    Dense(DMatrix<f64>),
+    /// Lower-triangle values in the [`ReducedPattern`]'s CSC layout (the
+    /// sparse path).
+    Sparse(Vec<f64>),
 }
 
 /// A contiguous range of points and the working memory of their pass.
@@ -72,8 +105,8 @@ pub(super) struct PointChunk {
     pub pose_hessian: Vec<Matrix6<f64>>,
     /// Per free pose: this chunk's part of `b_c`.
     pub pose_gradient: Vec<Vector6<f64>>,
-    /// This chunk's part of `−W V⁻¹ Wᵀ` (upper block triangle only).
-    pub reduced: DMatrix<f64>,
+    /// This chunk's part of `−W V⁻¹ Wᵀ`.
+    pub reduced: ReducedPart,
     /// This chunk's part of `W V⁻¹ b_p`.
     pub reduced_rhs: DVector<f64>,
     /// Scalars of the last pass.
@@ -81,8 +114,13 @@ pub(super) struct PointChunk {
 }
 
 impl PointChunk {
-    /// Working memory for the points `points` of `layout`.
-    pub fn new(layout: &Layout, points: Range<usize>) -> Self {
+    /// Working memory for the points `points` of `layout`; `reduced_pattern`
+    /// selects the sparse path.
+    pub fn new(
+        layout: &Layout,
+        points: Range<usize>,
+        reduced_pattern: Option<&ReducedPattern>,
+    ) -> Self {
         let observations = layout.point_offsets[points.start]..layout.point_offsets[points.end];
         let n_points = points.len();
         let free = layout.free_poses.len();
@@ -95,7 +133,10 @@ impl PointChunk {
             scaled: Vec::with_capacity(layout.max_observations_per_point),
             pose_hessian: vec![Matrix6::zeros(); free],
             pose_gradient: vec![Vector6::zeros(); free],
-            reduced: DMatrix::zeros(6 * free, 6 * free),
+            reduced: match reduced_pattern {
+                Some(pattern) => ReducedPart::Sparse(vec![0.0; pattern.value_count()]),
+                None => ReducedPart::Dense(DMatrix::zeros(6 * free, 6 * free)),
+            },
             reduced_rhs: DVector::zeros(6 * free),
             sums: ChunkSums::default(),
             points,

@@ -2,6 +2,23 @@
 
 use crate::optim::damping::NielsenDamping;
 
+/// How the reduced camera system `S δc = s` is factorised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ReducedSystemSolver {
+    /// Sparse from [`LocalBaConfig::sparse_min_free_poses`] free poses on,
+    /// dense below (the default).
+    #[default]
+    Auto,
+    /// Dense Cholesky of the full `6k×6k` matrix (each worker chunk holds
+    /// its own `6k×6k` partial sum): fastest for a local window.
+    Dense,
+    /// Block-sparse Cholesky over the covisibility pattern (free pose pairs
+    /// that share a point), the symbolic analysis done once per bundle
+    /// adjustment: memory and time grow with the covisibility, not `k²`/`k³`
+    /// (global bundle adjustment).
+    Sparse,
+}
+
 /// Settings of [`super::local_bundle_adjustment`]; the defaults follow
 /// ORB-SLAM's two-stage `LocalBundleAdjustment`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -27,6 +44,13 @@ pub struct LocalBaConfig {
     /// preempted worker), and local mapping runs beside tracking anyway.
     /// Results are deterministic for a given value.
     pub threads: usize,
+    /// Dense or sparse factorisation of the reduced camera system
+    /// ([`ReducedSystemSolver::Auto`]). Both give the same result to rounding.
+    pub reduced_solver: ReducedSystemSolver,
+    /// With [`ReducedSystemSolver::Auto`], the sparse path is taken from this
+    /// many free poses on (40: measured crossover on the 2-vCPU machine, see
+    /// BENCHMARKS.md — below it the dense path is as fast or faster).
+    pub sparse_min_free_poses: usize,
 }
 
 impl Default for LocalBaConfig {
@@ -40,11 +64,26 @@ impl Default for LocalBaConfig {
             initial_damping: NielsenDamping::DEFAULT_INITIAL_MU,
             max_tries_per_iteration: 10,
             threads: 1,
+            reduced_solver: ReducedSystemSolver::Auto,
+            sparse_min_free_poses: Self::DEFAULT_SPARSE_MIN_FREE_POSES,
         }
     }
 }
 
 impl LocalBaConfig {
+    /// Default of [`Self::sparse_min_free_poses`].
+    pub const DEFAULT_SPARSE_MIN_FREE_POSES: usize = 40;
+
+    /// Whether a problem with `free_poses` free poses (after the gauge
+    /// choice) is solved by the sparse path.
+    pub fn uses_sparse_solver(&self, free_poses: usize) -> bool {
+        match self.reduced_solver {
+            ReducedSystemSolver::Auto => free_poses >= self.sparse_min_free_poses,
+            ReducedSystemSolver::Dense => false,
+            ReducedSystemSolver::Sparse => true,
+        }
+    }
+
     /// The number of worker threads to use.
     pub fn worker_threads(&self) -> usize {
         if self.threads > 0 {

@@ -4,11 +4,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use nalgebra::{Cholesky, DMatrix, DVector, Matrix6, Vector3, Vector6};
 
-use super::chunk::{pose_matrices, PassInputs, PointChunk};
+use super::chunk::{pose_matrices, PassInputs, PointChunk, ReducedPart};
 use super::config::LocalBaConfig;
 use super::layout::Layout;
 use super::parallel::for_each_chunk;
 use super::report::{StageReport, Termination};
+use super::sparse_schur::{ReducedPattern, SparseReducedSolver};
 use crate::optim::damping::{gain_ratio, marquardt_scale, predicted_decrease, NielsenDamping};
 use crate::optim::reprojection::{PinholeStereo, PoseMatrix};
 use crate::optim::{LieGroup, OptimError, Se3};
@@ -38,6 +39,8 @@ pub(super) struct Solver<'a> {
     camera: &'a PinholeStereo,
     layout: &'a Layout,
     config: &'a LocalBaConfig,
+    reduced_pattern: Option<&'a ReducedPattern>,
+    sparse: Option<SparseReducedSolver>,
     chunks: Vec<PointChunk>,
     poses: Vec<PoseMatrix>,
     candidate_poses: Vec<Se3>,
@@ -57,18 +60,31 @@ struct StepOutcome {
 }
 
 impl<'a> Solver<'a> {
-    /// Allocates the working memory for `layout`.
-    pub fn new(camera: &'a PinholeStereo, layout: &'a Layout, config: &'a LocalBaConfig) -> Self {
+    /// Allocates the working memory for `layout`; with `reduced_pattern`
+    /// the reduced camera system takes the sparse path (its symbolic
+    /// analysis runs here, once).
+    pub fn new(
+        camera: &'a PinholeStereo,
+        layout: &'a Layout,
+        reduced_pattern: Option<&'a ReducedPattern>,
+        config: &'a LocalBaConfig,
+    ) -> Result<Self, OptimError> {
         let chunks = layout
             .chunks
             .iter()
-            .map(|range| PointChunk::new(layout, range.clone()))
+            .map(|range| PointChunk::new(layout, range.clone(), reduced_pattern))
             .collect();
         let free = layout.free_poses.len();
-        Self {
+        let sparse = match reduced_pattern {
+            Some(pattern) if free > 0 => Some(SparseReducedSolver::new(pattern)?),
+            _ => None,
+        };
+        Ok(Self {
             camera,
             layout,
             config,
+            reduced_pattern,
+            sparse,
             chunks,
             poses: Vec::new(),
             candidate_poses: Vec::new(),
@@ -76,7 +92,7 @@ impl<'a> Solver<'a> {
             pose_hessian: vec![Matrix6::zeros(); free],
             pose_gradient: vec![Vector6::zeros(); free],
             pose_steps: vec![Vector6::zeros(); free],
-        }
+        })
     }
 
     fn inputs<'s>(&self, state: &'s State<'_>, stage: &'s StageSettings<'_>) -> PassInputs<'s>
@@ -89,6 +105,7 @@ impl<'a> Solver<'a> {
             active: stage.active,
             robust: stage.robust,
             points: state.points,
+            reduced_pattern: self.reduced_pattern,
         }
     }
 
@@ -126,18 +143,38 @@ impl<'a> Solver<'a> {
             return true;
         }
         let n = 6 * free;
-        let mut reduced = DMatrix::<f64>::zeros(n, n);
         let mut rhs = DVector::<f64>::zeros(n);
         for chunk in &self.chunks {
-            reduced += &chunk.reduced;
             rhs += &chunk.reduced_rhs;
+        }
+        for f in 0..free {
+            let mut r = rhs.fixed_rows_mut::<6>(6 * f);
+            r -= self.pose_gradient[f];
+        }
+        if let (Some(sparse), Some(pattern)) = (self.sparse.as_mut(), self.reduced_pattern) {
+            let parts = self.chunks.iter().filter_map(|chunk| match &chunk.reduced {
+                ReducedPart::Sparse(values) => Some(values.as_slice()),
+                ReducedPart::Dense(_) => None,
+            });
+            return sparse.solve(
+                pattern,
+                parts,
+                &self.pose_hessian,
+                mu,
+                &rhs,
+                &mut self.pose_steps,
+            );
+        }
+        let mut reduced = DMatrix::<f64>::zeros(n, n);
+        for chunk in &self.chunks {
+            if let ReducedPart::Dense(part) = &chunk.reduced {
+                reduced += part;
+            }
         }
         for f in 0..free {
             let mut block = reduced.fixed_view_mut::<6, 6>(6 * f, 6 * f);
             let h = &self.pose_hessian[f];
             block += h + Matrix6::from_diagonal(&(h.diagonal().map(marquardt_scale) * mu));
-            let mut r = rhs.fixed_rows_mut::<6>(6 * f);
-            r -= self.pose_gradient[f];
         }
         for c in 0..n {
             for r in (c + 1)..n {

@@ -10,14 +10,14 @@
 //!   ([`residual`]);
 //! - [`PoseGraphSolver`]: Gauss–Newton or Levenberg–Marquardt on the sparse
 //!   normal equations, assembled straight into a block-CSC pattern and solved
-//!   by faer's sparse Cholesky whose symbolic factorisation is computed once.
+//!   by faer's sparse Cholesky whose symbolic factorisation is computed once
+//!   (the pattern, ordering and Cholesky live in the crate-internal
+//!   `optim::sparse` module, shared with bundle adjustment's sparse reduced
+//!   camera system).
 
-mod cholesky;
 mod graph;
 mod kernel;
 mod normal_equations;
-mod ordering;
-mod pattern;
 pub mod residual;
 mod solver;
 mod summary;

@@ -8,9 +8,9 @@ use nalgebra::{SMatrix, SVector};
 
 use super::graph::PoseGraphEdge;
 use super::kernel::robust_cost_and_weight;
-use super::pattern::{BlockPattern, BlockSlot};
 use super::residual::{edge_residual, linearise_edge_with_adjoint};
 use crate::optim::lie::LieGroup;
+use crate::optim::sparse::{add_diagonal_block, add_full_block, BlockPattern};
 
 /// `H` (upper-triangle CSC values), `b` and χ² at one linearisation point.
 #[derive(Debug, Clone)]
@@ -163,38 +163,6 @@ pub(super) fn total_chi2<G: LieGroup<N>, const N: usize>(
             robust_cost_and_weight(edge.robust_kernel.as_ref(), squared_error).0
         })
         .sum()
-}
-
-fn add_diagonal_block<const N: usize>(
-    values: &mut [f64],
-    slot: &BlockSlot<N>,
-    block: &SMatrix<f64, N, N>,
-) {
-    // Lower triangle: column b holds rows b..N, starting at slot[b].
-    for (b, &start) in slot.iter().enumerate() {
-        let column = block.column(b);
-        for (value, &entry) in values[start..start + N - b]
-            .iter_mut()
-            .zip(column.iter().skip(b))
-        {
-            *value += entry;
-        }
-    }
-}
-
-fn add_full_block<const N: usize>(
-    values: &mut [f64],
-    slot: &BlockSlot<N>,
-    block: &SMatrix<f64, N, N>,
-) {
-    for (b, &start) in slot.iter().enumerate() {
-        for (value, &entry) in values[start..start + N]
-            .iter_mut()
-            .zip(block.column(b).iter())
-        {
-            *value += entry;
-        }
-    }
 }
 
 fn add_gradient<const N: usize>(gradient: &mut [f64], block: usize, part: &SVector<f64, N>) {

@@ -9,13 +9,12 @@ use std::time::Instant;
 
 use nalgebra::{SMatrix, SVector};
 
-use super::cholesky::SparseCholesky;
 use super::graph::PoseGraph;
 use super::normal_equations::{total_chi2, NormalEquations};
-use super::pattern::BlockPattern;
 use super::summary::{Algorithm, IterationRecord, PoseGraphOptions, PoseGraphSummary, Termination};
 use crate::optim::error::OptimError;
 use crate::optim::lie::LieGroup;
+use crate::optim::sparse::{BlockPattern, SparseCholesky};
 
 /// Fewest edges per assembly thread (smaller graphs are assembled on fewer).
 const EDGES_PER_ASSEMBLY_THREAD: usize = 1000;

@@ -1,7 +1,11 @@
-//! The sparsity pattern of the normal equations, built once per graph.
+//! The block sparsity pattern of a symmetric positive-definite system,
+//! built once per problem (a pose graph's normal equations, bundle
+//! adjustment's reduced camera system).
 //!
-//! Free nodes become block columns of size `N`, placed in the elimination
-//! order of [`super::ordering`]. `H` is stored as its lower triangle in
+//! Free nodes (poses) become block columns of size `N`, placed in the
+//! elimination order of [`super::ordering`]; each edge (a pair of nodes
+//! coupled by a measurement, or by a shared point) adds one off-diagonal
+//! block. `H` is stored as its lower triangle in
 //! compressed sparse columns (what faer's supernodal Cholesky works on, so it
 //! is factorised without a copy): block column `c` holds the lower triangle of
 //! its diagonal block, then the full `N×N` blocks of the connected block rows
@@ -10,15 +14,17 @@
 //! block lives at `column_starts[b] + a` (of a diagonal block, `a ≥ b`, at
 //! `column_starts[b] + a − b`) and assembly is a scatter with no search.
 
+use nalgebra::SMatrix;
+
 use super::ordering::block_elimination_positions;
 use crate::optim::error::OptimError;
 
 /// Where one `N×N` block of `H` lives in the CSC value array.
-pub(super) type BlockSlot<const N: usize> = [usize; N];
+pub(crate) type BlockSlot<const N: usize> = [usize; N];
 
 /// Where one edge's contributions go.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) struct EdgeSlots {
+pub(crate) struct EdgeSlots {
     /// Block column of the `from` node, if it is free.
     pub from_block: Option<usize>,
     /// Block column of the `to` node, if it is free.
@@ -31,7 +37,7 @@ pub(super) struct EdgeSlots {
 
 /// The CSC structure of the lower triangle of `H` and the block positions.
 #[derive(Debug, Clone)]
-pub(super) struct BlockPattern<const N: usize> {
+pub(crate) struct BlockPattern<const N: usize> {
     /// Block (position in the elimination order) of each node, `None` for
     /// nodes held constant.
     pub block_of_node: Vec<Option<usize>>,
@@ -53,7 +59,9 @@ pub(super) struct BlockPattern<const N: usize> {
 
 impl<const N: usize> BlockPattern<N> {
     /// Builds the pattern for `edges` (pairs `(from, to)`) over nodes whose
-    /// `held_constant` flag is false.
+    /// `held_constant` flag is false. Edges touching a held-constant node add
+    /// no block; repeated edges share one block (each still gets its
+    /// [`EdgeSlots`]).
     pub fn new(held_constant: &[bool], edges: &[(usize, usize)]) -> Result<Self, OptimError> {
         let mut natural_block = vec![None; held_constant.len()];
         let mut block_count = 0;
@@ -153,5 +161,41 @@ impl<const N: usize> BlockPattern<N> {
     /// Number of stored values (lower triangle).
     pub fn value_count(&self) -> usize {
         self.row_indices.len()
+    }
+}
+
+/// Adds a symmetric `N×N` block to a diagonal block of the lower-triangle
+/// value array (only `block`'s lower triangle is read).
+pub(crate) fn add_diagonal_block<const N: usize>(
+    values: &mut [f64],
+    slot: &BlockSlot<N>,
+    block: &SMatrix<f64, N, N>,
+) {
+    // Lower triangle: column b holds rows b..N, starting at slot[b].
+    for (b, &start) in slot.iter().enumerate() {
+        let column = block.column(b);
+        for (value, &entry) in values[start..start + N - b]
+            .iter_mut()
+            .zip(column.iter().skip(b))
+        {
+            *value += entry;
+        }
+    }
+}
+
+/// Adds a full `N×N` block to an off-diagonal block of the value array
+/// (`block` is in the block's row/column orientation: rows of its block row).
+pub(crate) fn add_full_block<const N: usize>(
+    values: &mut [f64],
+    slot: &BlockSlot<N>,
+    block: &SMatrix<f64, N, N>,
+) {
+    for (b, &start) in slot.iter().enumerate() {
+        for (value, &entry) in values[start..start + N]
+            .iter_mut()
+            .zip(block.column(b).iter())
+        {
+            *value += entry;
+        }
     }
 }

@@ -13,7 +13,7 @@ use crate::optim::error::OptimError;
 
 /// For each block (free node in natural order), its position in the
 /// elimination order. `neighbours` are block pairs `(a, b)`, `a ≠ b`.
-pub(super) fn block_elimination_positions(
+pub(crate) fn block_elimination_positions(
     block_count: usize,
     neighbours: &[(usize, usize)],
 ) -> Result<Vec<usize>, OptimError> {

@@ -2,8 +2,9 @@
 //!
 //! The matrix arrives as its lower triangle, already in elimination order
 //! (see [`super::ordering`]), so faer is told to use it as is. The elimination
-//! structure depends only on the sparsity pattern, which a pose graph keeps between
-//! iterations; each iteration only refactorises numerically and solves.
+//! structure depends only on the sparsity pattern, which a pose graph (or a
+//! bundle adjustment's reduced camera system) keeps between iterations; each
+//! iteration (each damping tried) only refactorises numerically and solves.
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltError;
@@ -41,7 +42,7 @@ fn transpose_pattern(
 }
 
 /// A reusable sparse LLᵀ factorisation for one fixed lower-triangular pattern.
-pub(super) struct SparseCholesky {
+pub(crate) struct SparseCholesky {
     dimension: usize,
     column_pointers: Vec<usize>,
     row_indices: Vec<usize>,
