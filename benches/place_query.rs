@@ -1,13 +1,21 @@
 //! One keyframe-database query (brute-force cosine, covisibility groups) at
-//! 5,000 and 10,000 keyframes, with raw VLAD descriptors (64 × 256 =
-//! 16,384 values) and PCA-whitened ones (512 values). Random unit
-//! descriptors; each keyframe's covisible keyframes are its 10 neighbours
-//! in id order.
+//! 5,000 and 10,000 keyframes, with raw VLAD descriptors of the three
+//! codebook sizes studied (k × 256 values: k = 32, 64 (the default) and 128)
+//! and PCA-whitened ones (512 and 256 values). Random unit descriptors;
+//! each keyframe's covisible keyframes are its 10 neighbours in id order.
+//!
+//! `vlad_describe`: what a keyframe's global descriptor costs with each
+//! codebook (`Vlad::compute_flat` on 1,000 random 256-float descriptors:
+//! assignment to the nearest of k random centres, residual sums,
+//! normalisation, and for the whitened ones the 16,384 × 512 or 256
+//! projection).
 use std::collections::HashSet;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
 use spslam::place::global_descriptor::l2_normalise;
-use spslam::place::{KeyframeDatabase, QueryOptions, SeededRng};
+use spslam::place::{
+    DescriptorRows, GlobalDescriptor, KeyframeDatabase, QueryOptions, SeededRng, Vlad, Whitening,
+};
 
 fn unit(rng: &mut SeededRng, dim: usize) -> Vec<f32> {
     let mut v: Vec<f32> = (0..dim).map(|_| rng.next_unit() as f32 - 0.5).collect();
@@ -17,8 +25,8 @@ fn unit(rng: &mut SeededRng, dim: usize) -> Vec<f32> {
 
 fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("place_query");
-    g.sample_size(20);
-    for dim in [64 * 256, 512] {
+    g.sample_size(10);
+    for dim in [32 * 256, 64 * 256, 128 * 256, 512, 256] {
         for n in [5_000usize, 10_000] {
             let mut rng = SeededRng::new(n as u64 + dim as u64);
             let mut db = KeyframeDatabase::new(dim).unwrap();
@@ -45,5 +53,35 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+/// `n` random unit rows of `dim` values.
+fn rows(rng: &mut SeededRng, n: usize, dim: usize) -> DescriptorRows<f32> {
+    let flat = (0..n).flat_map(|_| unit(rng, dim)).collect();
+    DescriptorRows::from_flat(dim, flat).unwrap()
+}
+
+fn bench_describe(c: &mut Criterion) {
+    const LOCAL: usize = 256;
+    let mut g = c.benchmark_group("vlad_describe");
+    g.sample_size(10);
+    let mut rng = SeededRng::new(7);
+    let keypoints = rows(&mut rng, 1_000, LOCAL);
+    for (k, whitened) in [(32, None), (64, None), (128, None), (64, Some(512)), (64, Some(256))] {
+        let mut vlad = Vlad::new(rows(&mut rng, k, LOCAL)).unwrap();
+        if let Some(out) = whitened {
+            let projection = rows(&mut rng, out, k * LOCAL);
+            let whitening = Whitening::from_parts(vec![0.0; k * LOCAL], projection).unwrap();
+            vlad = vlad.with_whitening(whitening).unwrap();
+        }
+        let name = match whitened {
+            None => format!("k{k}_raw_{}_dims", k * LOCAL),
+            Some(out) => format!("k{k}_whitened_{out}_dims"),
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| vlad.compute_flat(black_box(keypoints.as_flat())).unwrap())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench, bench_describe);
 criterion_main!(benches);
