@@ -65,7 +65,13 @@ fn bench_describe(c: &mut Criterion) {
     g.sample_size(10);
     let mut rng = SeededRng::new(7);
     let keypoints = rows(&mut rng, 1_000, LOCAL);
-    for (k, whitened) in [(32, None), (64, None), (128, None), (64, Some(512)), (64, Some(256))] {
+    for (k, whitened) in [
+        (32, None),
+        (64, None),
+        (128, None),
+        (64, Some(512)),
+        (64, Some(256)),
+    ] {
         let mut vlad = Vlad::new(rows(&mut rng, k, LOCAL)).unwrap();
         if let Some(out) = whitened {
             let projection = rows(&mut rng, out, k * LOCAL);
