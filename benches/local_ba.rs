@@ -32,13 +32,8 @@
 use std::time::Duration;
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion};
-use nalgebra::{UnitQuaternion, Vector3};
-use spslam::optim::local_ba::{
-    local_bundle_adjustment, BaObservation, LocalBaConfig, ReducedSystemSolver,
-};
+use spslam::optim::local_ba::{local_bundle_adjustment, LocalBaConfig, ReducedSystemSolver};
 use spslam::optim::pose_only::{optimise_pose, PoseOnlyConfig};
-use spslam::optim::reprojection::{inv_level_sigma2, Observation};
-use spslam::optim::{LieGroup, Se3};
 
 #[path = "../tests/common/rng.rs"]
 mod rng;
@@ -46,7 +41,7 @@ mod rng;
 #[path = "../tests/common/synthetic_ba.rs"]
 mod synthetic_ba;
 
-use synthetic_ba::{kitti_camera, perturb, Rng, Scene, SceneSpec, SCALE_FACTOR};
+use synthetic_ba::{chain_scene, perturb, Rng, Scene, SceneSpec};
 
 fn scene(keyframes: usize, points: usize) -> Scene {
     Scene::new(&SceneSpec {
@@ -129,74 +124,6 @@ fn pose_only(c: &mut Criterion) {
     c.bench_function("pose_only", |b| {
         b.iter(|| optimise_pose(&scene.camera, black_box(&start), &correspondences, &config))
     });
-}
-
-/// A long chain of keyframes (see the module docs; the same generator as
-/// `tests/optim_local_ba.rs`): forward 0.8 m apart, the heading oscillating
-/// instead of turning round, so points stay in front of the 3–5
-/// consecutive keyframes that see them.
-fn chain_scene(keyframes: usize, points_per_keyframe: usize, seed: u64) -> Scene {
-    let mut rng = Rng::new(seed);
-    let camera = kitti_camera();
-    let poses: Vec<Se3> = (0..keyframes)
-        .map(|k| {
-            let s = k as f64;
-            let centre = Vector3::new(0.3 * (0.4 * s).sin(), 0.05 * (0.7 * s).cos(), 0.8 * s);
-            let r_wc = UnitQuaternion::from_euler_angles(
-                0.01 * (0.3 * s).sin(),
-                0.1 * (0.05 * s).sin(),
-                0.0,
-            );
-            Se3::new(r_wc, centre).inverse()
-        })
-        .collect();
-    let n_points = keyframes * points_per_keyframe;
-    let mut points = Vec::with_capacity(n_points);
-    let mut observations = Vec::new();
-    for index in 0..n_points {
-        let seen_by = rng.int(3, 5).min(keyframes);
-        let first = rng.int(0, keyframes - seen_by);
-        let reference = &poses[first + seen_by - 1];
-        let (u, v, z) = (
-            rng.range(0.0, 1241.0),
-            rng.range(0.0, 376.0),
-            rng.range(4.0, 30.0),
-        );
-        let p_cam = Vector3::new(
-            (u - camera.cx) / camera.fx * z,
-            (v - camera.cy) / camera.fy * z,
-            z,
-        );
-        let point = reference.inverse().transform_point(&p_cam);
-        points.push(point);
-        for (pose, camera_pose) in poses.iter().enumerate().skip(first).take(seen_by) {
-            let octave = rng.int(0, 3) as u32;
-            let information = inv_level_sigma2(SCALE_FACTOR, octave);
-            let sigma = 0.5 / information.sqrt();
-            let mut m = camera.project_stereo(&camera_pose.transform_point(&point));
-            m.x += sigma * rng.normal();
-            m.y += sigma * rng.normal();
-            m.z += sigma * rng.normal();
-            let obs = if rng.uniform() < 0.5 {
-                Observation::stereo(m.x, m.y, m.z, information)
-            } else {
-                Observation::mono(m.x, m.y, information)
-            };
-            observations.push(BaObservation {
-                pose,
-                point: index,
-                obs,
-            });
-        }
-    }
-    let is_outlier = vec![false; observations.len()];
-    Scene {
-        camera,
-        poses,
-        points,
-        observations,
-        is_outlier,
-    }
 }
 
 /// One robust LM iteration and no second stage, on the given path.

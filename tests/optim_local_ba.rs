@@ -37,13 +37,13 @@
 
 mod common;
 
-use common::synthetic_ba::{kitti_camera, pose_error, Rng, Scene, SceneSpec, SCALE_FACTOR};
-use nalgebra::{DMatrix, DVector, UnitQuaternion, Vector3, Vector6};
+use common::synthetic_ba::{chain_scene, pose_error, Scene, SceneSpec};
+use nalgebra::{DMatrix, DVector, Vector3, Vector6};
 use spslam::optim::local_ba::{
-    local_bundle_adjustment, BaObservation, BundleProblem, LocalBaConfig, LocalBaReport,
-    ReducedSystemSolver, Termination,
+    local_bundle_adjustment, BundleProblem, LocalBaConfig, LocalBaReport, ReducedSystemSolver,
+    Termination,
 };
-use spslam::optim::reprojection::{inv_level_sigma2, observation_chi2, Measurement, Observation};
+use spslam::optim::reprojection::{observation_chi2, Measurement, Observation};
 use spslam::optim::{LieGroup, OptimError, Se3};
 
 fn spec() -> SceneSpec {
@@ -688,74 +688,6 @@ fn a_raised_abort_flag_stops_before_the_next_iteration() {
 }
 
 // ---- Sparse reduced camera system (global-BA sized chains) ----
-
-/// A long chain of keyframes moving forward 0.8 m apart with a heading that
-/// oscillates (±0.1 rad) instead of turning round, so every point stays in
-/// front of the 3–5 consecutive keyframes that see it; `points_per_keyframe`
-/// points per keyframe, 0.5 px × 1.2^octave noise, half stereo.
-fn chain_scene(keyframes: usize, points_per_keyframe: usize, seed: u64) -> Scene {
-    let mut rng = Rng::new(seed);
-    let camera = kitti_camera();
-    let poses: Vec<Se3> = (0..keyframes)
-        .map(|k| {
-            let s = k as f64;
-            let centre = Vector3::new(0.3 * (0.4 * s).sin(), 0.05 * (0.7 * s).cos(), 0.8 * s);
-            let r_wc = UnitQuaternion::from_euler_angles(
-                0.01 * (0.3 * s).sin(),
-                0.1 * (0.05 * s).sin(),
-                0.0,
-            );
-            Se3::new(r_wc, centre).inverse()
-        })
-        .collect();
-    let n_points = keyframes * points_per_keyframe;
-    let mut points = Vec::with_capacity(n_points);
-    let mut observations = Vec::new();
-    for index in 0..n_points {
-        let seen_by = rng.int(3, 5).min(keyframes);
-        let first = rng.int(0, keyframes - seen_by);
-        let reference = &poses[first + seen_by - 1];
-        let (u, v, z) = (
-            rng.range(0.0, 1241.0),
-            rng.range(0.0, 376.0),
-            rng.range(4.0, 30.0),
-        );
-        let p_cam = Vector3::new(
-            (u - camera.cx) / camera.fx * z,
-            (v - camera.cy) / camera.fy * z,
-            z,
-        );
-        let point = reference.inverse().transform_point(&p_cam);
-        points.push(point);
-        for (pose, camera_pose) in poses.iter().enumerate().skip(first).take(seen_by) {
-            let octave = rng.int(0, 3) as u32;
-            let information = inv_level_sigma2(SCALE_FACTOR, octave);
-            let sigma = 0.5 / information.sqrt();
-            let mut m = camera.project_stereo(&camera_pose.transform_point(&point));
-            m.x += sigma * rng.normal();
-            m.y += sigma * rng.normal();
-            m.z += sigma * rng.normal();
-            let obs = if rng.uniform() < 0.5 {
-                Observation::stereo(m.x, m.y, m.z, information)
-            } else {
-                Observation::mono(m.x, m.y, information)
-            };
-            observations.push(BaObservation {
-                pose,
-                point: index,
-                obs,
-            });
-        }
-    }
-    let is_outlier = vec![false; observations.len()];
-    Scene {
-        camera,
-        poses,
-        points,
-        observations,
-        is_outlier,
-    }
-}
 
 fn with_solver(config: LocalBaConfig, reduced_solver: ReducedSystemSolver) -> LocalBaConfig {
     LocalBaConfig {
