@@ -315,7 +315,7 @@ impl Map {
         parent
     }
 
-    fn set_parent(&mut self, child: KeyFrameId, parent: KeyFrameId) {
+    pub(super) fn set_parent(&mut self, child: KeyFrameId, parent: KeyFrameId) {
         if let Some(n) = self.covisibility.get_mut(&child) {
             n.parent = Some(parent);
         }

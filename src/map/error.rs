@@ -41,6 +41,17 @@ pub enum MapError {
         /// Stereo entries given.
         stereo: usize,
     },
+    /// Absorbing a map whose ids overlap this map's.
+    #[error("cannot absorb a map whose ids overlap this one's: {what} {id} is in both")]
+    IdCollision {
+        /// "keyframe" or "map point".
+        what: &'static str,
+        /// The id in both.
+        id: u64,
+    },
+    /// Joining spanning trees at a keyframe that is not live.
+    #[error("cannot join the maps' spanning trees at {0}: it is not live")]
+    JoinAtUnknownKeyFrame(KeyFrameId),
 }
 
 /// Result alias for map operations.

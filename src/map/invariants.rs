@@ -620,7 +620,12 @@ impl Map {
                 });
             }
         }
-        for keyframe in (0..self.next_keyframe).map(KeyFrameId) {
+        for keyframe in self
+            .issued_keyframe_ranges()
+            .into_iter()
+            .flatten()
+            .map(KeyFrameId)
+        {
             if !self.keyframes.contains_key(&keyframe) && !self.culled.contains_key(&keyframe) {
                 return Err(InvariantViolation::KeyFrameLost { keyframe });
             }
@@ -656,36 +661,7 @@ mod tests {
     };
     use crate::optim::Se3;
 
-    const DIM: usize = 2;
-
-    /// `n` keypoints, every other one with a stereo measurement.
-    fn measurements(n: usize) -> FrameMeasurements {
-        FrameMeasurements {
-            keypoints: (0..n)
-                .map(|i| Keypoint {
-                    x: i as f32 * 10.0,
-                    y: 0.0,
-                    size: 31.0,
-                    angle: 0.0,
-                    response: 1.0,
-                    octave: 0,
-                })
-                .collect(),
-            descriptors: DescriptorSet::Float {
-                dim: DIM,
-                data: (0..n * DIM).map(|v| v as f32).collect(),
-            },
-            stereo: (0..n)
-                .map(|i| {
-                    (i % 2 == 0).then_some(StereoMeasurement {
-                        right_u: 0.0,
-                        depth: 5.0,
-                    })
-                })
-                .collect(),
-            scales: ScaleTables::new(1000, 1.2, 8),
-        }
-    }
+    use crate::map::tests_support::{measurements, DIM};
 
     /// Three keyframes all seeing the same four points, connected.
     fn small_map() -> (Map, Vec<KeyFrameId>, Vec<MapPointId>) {

@@ -32,6 +32,7 @@
 //!   another thread, and a guard is never held across a call that takes the
 //!   same lock again.
 
+mod absorb;
 mod counter;
 mod covisibility;
 mod culling;
@@ -41,6 +42,8 @@ mod ids;
 mod invariants;
 mod keyframe;
 mod map_point;
+#[cfg(test)]
+mod tests_support;
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, RwLock};
@@ -82,12 +85,38 @@ pub struct Map {
     replaced: BTreeMap<MapPointId, MapPointId>,
     next_keyframe: u64,
     next_point: u64,
+    /// First id this map issues (keyframes and points alike); see
+    /// [`Map::with_id_base`].
+    id_base: u64,
+    /// Keyframe ids issued by maps absorbed into this one, or by this map
+    /// before it absorbed one with a higher base ([`Map::absorb`]).
+    closed_keyframe_ranges: Vec<std::ops::Range<u64>>,
 }
 
 impl Map {
     /// An empty map.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// An empty map whose keyframe and point ids start at `base`. The
+    /// maps of an atlas get disjoint bases, so that one can absorb another
+    /// ([`Map::absorb`]) and every id that tracking, local mapping and the
+    /// frame records hold stays valid.
+    pub fn with_id_base(base: u64) -> Self {
+        Self {
+            next_keyframe: base,
+            next_point: base,
+            id_base: base,
+            ..Self::default()
+        }
+    }
+
+    /// Every keyframe id range this map has issued (live or culled ids).
+    pub(crate) fn issued_keyframe_ranges(&self) -> Vec<std::ops::Range<u64>> {
+        let mut ranges = self.closed_keyframe_ranges.clone();
+        ranges.push(self.id_base..self.next_keyframe);
+        ranges
     }
 
     /// Wraps a map for sharing between threads.

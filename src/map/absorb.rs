@@ -1,0 +1,200 @@
+//! Map merging on the map's side (ORB-SLAM3's `MergeLocal` moves a map's
+//! keyframes and points into another's world): one map absorbs another,
+//! moved by a rigid transform, and their spanning trees are joined.
+//!
+//! Ids are never renumbered: the maps of an atlas issue disjoint ids
+//! ([`Map::with_id_base`]), so whatever refers to the absorbed map's
+//! keyframes and points (tracking's last frame, local mapping's recent
+//! points, the frame records) still refers to the same entities after
+//! the merge. Fusing the duplicates the two maps hold of the same place is
+//! the loop correction's job (see `loop_closing::correct_loop`).
+
+use std::collections::BTreeSet;
+
+use crate::optim::{LieGroup, Se3};
+
+use super::error::{MapError, Result};
+use super::ids::KeyFrameId;
+use super::Map;
+
+impl Map {
+    /// Moves every keyframe, point and graph edge of `other` into this map.
+    ///
+    /// `t_self_other` takes `other`'s world frame to this map's:
+    /// `X_self = t_self_other · X_other`, so a keyframe's `T_cw` becomes
+    /// `T_cw · t_self_other⁻¹`. The spanning trees are joined at
+    /// `join = (other_kf, self_kf)`: the path from `other_kf` up to its
+    /// root is reversed and `other_kf` becomes a child of `self_kf`
+    /// (ORB-SLAM3's `ChangeParent` in `MergeLocal`), so this map's root
+    /// stays the root.
+    ///
+    /// Nothing changes when the ids overlap ([`MapError::IdCollision`]) or
+    /// a join keyframe is not live ([`MapError::JoinAtUnknownKeyFrame`]).
+    pub fn absorb(
+        &mut self,
+        mut other: Map,
+        t_self_other: &Se3,
+        join: (KeyFrameId, KeyFrameId),
+    ) -> Result<()> {
+        let (other_kf, self_kf) = join;
+        if !other.keyframes.contains_key(&other_kf) {
+            return Err(MapError::JoinAtUnknownKeyFrame(other_kf));
+        }
+        if !self.keyframes.contains_key(&self_kf) {
+            return Err(MapError::JoinAtUnknownKeyFrame(self_kf));
+        }
+        self.check_disjoint(&other)?;
+        other.join_tree_at(other_kf);
+        let to_other = t_self_other.inverse();
+        for (id, mut kf) in std::mem::take(&mut other.keyframes) {
+            kf.set_pose_cw(kf.pose_cw().compose(&to_other));
+            self.keyframes.insert(id, kf);
+        }
+        for (id, mut point) in std::mem::take(&mut other.points) {
+            point.position = t_self_other.transform_point(&point.position);
+            point.normal = t_self_other.rotation * point.normal;
+            self.points.insert(id, point);
+        }
+        self.covisibility
+            .extend(std::mem::take(&mut other.covisibility));
+        // Culled keyframes keep their pose relative to their parent, which
+        // moves with them.
+        self.culled.extend(std::mem::take(&mut other.culled));
+        self.replaced.extend(std::mem::take(&mut other.replaced));
+        let mine = self.id_base..self.next_keyframe;
+        let theirs = other.id_base..other.next_keyframe;
+        self.closed_keyframe_ranges
+            .extend(std::mem::take(&mut other.closed_keyframe_ranges));
+        if other.id_base > self.id_base {
+            // New ids continue in the range with room above them.
+            self.closed_keyframe_ranges.push(mine);
+            self.id_base = other.id_base;
+            self.next_keyframe = other.next_keyframe;
+            self.next_point = other.next_point;
+        } else {
+            self.closed_keyframe_ranges.push(theirs);
+        }
+        self.set_parent(other_kf, self_kf);
+        Ok(())
+    }
+
+    /// Fails when `other` holds an id this map holds or has issued.
+    fn check_disjoint(&self, other: &Map) -> Result<()> {
+        let mine = self.issued_keyframe_ranges();
+        for id in other.keyframes.keys().chain(other.culled.keys()) {
+            if mine.iter().any(|r| r.contains(&id.0)) || self.keyframes.contains_key(id) {
+                return Err(MapError::IdCollision {
+                    what: "keyframe",
+                    id: id.0,
+                });
+            }
+        }
+        for id in other.points.keys().chain(other.replaced.keys()) {
+            if self.points.contains_key(id) || self.replaced.contains_key(id) {
+                return Err(MapError::IdCollision {
+                    what: "map point",
+                    id: id.0,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Makes `keyframe` the root of its spanning tree by reversing the path
+    /// from it to the root; it is then left without a parent, marked
+    /// connected, ready to be attached under another tree.
+    fn join_tree_at(&mut self, keyframe: KeyFrameId) {
+        let mut path = vec![keyframe];
+        let mut seen = BTreeSet::from([keyframe]);
+        while let Some(parent) = path.last().and_then(|k| self.parent(*k)) {
+            if !seen.insert(parent) {
+                break;
+            }
+            path.push(parent);
+        }
+        for pair in path.windows(2) {
+            let (child, parent) = (pair[0], pair[1]);
+            if let Some(node) = self.covisibility.get_mut(&parent) {
+                node.children.remove(&child);
+            }
+            if let Some(node) = self.covisibility.get_mut(&child) {
+                node.parent = None;
+            }
+        }
+        for pair in path.windows(2) {
+            let (new_parent, new_child) = (pair[0], pair[1]);
+            self.set_parent(new_child, new_parent);
+        }
+        for k in &path {
+            if let Some(node) = self.covisibility.get_mut(k) {
+                node.connected = true;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{UnitQuaternion, Vector3};
+
+    use crate::map::tests_support::{measurements, small_map};
+    use crate::map::{KeyFrameId, Map, MapError};
+    use crate::optim::{LieGroup, Se3};
+
+    #[test]
+    fn absorbed_map_moves_by_the_transform_and_passes_the_invariants() {
+        let mut old = small_map(Map::new(), 4);
+        let mut new = small_map(Map::with_id_base(1 << 40), 5);
+        let t = Se3::new(
+            UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
+            Vector3::new(1.0, -2.0, 0.5),
+        );
+        let join_other = KeyFrameId((1 << 40) + 3);
+        let pose_before = new.pose_cw_of(join_other).map_err(|e| e.to_string());
+        let point_before: Vec<_> = new.map_points().map(|p| (p.id(), p.position)).collect();
+        let (kfs, points) = (
+            old.keyframe_count() + new.keyframe_count(),
+            old.map_point_count() + new.map_point_count(),
+        );
+        let absorbed = std::mem::take(&mut new);
+        assert!(old
+            .absorb(absorbed, &t, (join_other, KeyFrameId(2)))
+            .is_ok());
+        assert_eq!(old.keyframe_count(), kfs);
+        assert_eq!(old.map_point_count(), points);
+        assert_eq!(old.check_invariants(), Ok(()));
+        let after = old.pose_cw_of(join_other).map_err(|e| e.to_string());
+        let expected = pose_before.map(|p| p.compose(&t.inverse()));
+        let (Ok(after), Ok(expected)) = (after, expected) else {
+            panic!("join keyframe lost");
+        };
+        assert!((after.translation - expected.translation).norm() < 1e-12);
+        for (id, before) in point_before {
+            let p = old.map_point(id).map(|p| p.position);
+            assert_eq!(p, Ok(t.transform_point(&before)));
+        }
+        // The absorbed tree hangs under the join keyframe, re-rooted there.
+        assert_eq!(old.parent(join_other), Some(KeyFrameId(2)));
+        assert_eq!(
+            old.parent(KeyFrameId(1 << 40)),
+            Some(KeyFrameId((1 << 40) + 1))
+        );
+        // New ids continue above the absorbed map's.
+        let id = old.add_keyframe(99, 9.9, Se3::identity(), measurements(3));
+        assert_eq!(id, Ok(KeyFrameId((1 << 40) + 5)));
+        assert_eq!(old.check_invariants(), Ok(()));
+    }
+
+    #[test]
+    fn overlapping_ids_are_refused_and_nothing_changes() {
+        let mut a = small_map(Map::new(), 3);
+        let b = small_map(Map::new(), 3);
+        let before = a.keyframe_count();
+        let r = a.absorb(b, &Se3::identity(), (KeyFrameId(1), KeyFrameId(1)));
+        assert!(matches!(r, Err(MapError::IdCollision { .. })), "{r:?}");
+        assert_eq!(a.keyframe_count(), before);
+        let c = small_map(Map::with_id_base(100), 2);
+        let r = a.absorb(c, &Se3::identity(), (KeyFrameId(7), KeyFrameId(0)));
+        assert_eq!(r, Err(MapError::JoinAtUnknownKeyFrame(KeyFrameId(7))));
+    }
+}
