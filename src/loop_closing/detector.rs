@@ -169,10 +169,22 @@ impl LoopDetector {
     /// Forgets every keyframe and the pending loop (a new map). The
     /// database is emptied in place: its sharers see the empty one.
     pub fn clear(&mut self) -> Result<(), SlamError> {
+        self.take_database().map(|_| ())
+    }
+
+    /// Takes the database's entries out (a map the system leaves, kept for
+    /// merging), leaving it empty in place, and forgets the pending loop.
+    pub fn take_database(&mut self) -> Result<KeyframeDatabase<KeyFrameId>, SlamError> {
         let empty = KeyframeDatabase::new(self.descriptor.dim()).in_stage("keyframe database")?;
-        *write_database(&self.database) = empty;
         self.pending = None;
-        Ok(())
+        Ok(std::mem::replace(&mut *write_database(&self.database), empty))
+    }
+
+    /// Replaces the database's entries in place (a merge made another map
+    /// active) and forgets the pending loop.
+    pub fn replace_database(&mut self, database: KeyframeDatabase<KeyFrameId>) {
+        *write_database(&self.database) = database;
+        self.pending = None;
     }
 
     /// The global descriptor of a keyframe; `None` without float rows

@@ -12,6 +12,9 @@
 //! - [`DatabaseRelocaliser`]: tracking's relocalisation candidates from
 //!   the detector's (shared) database;
 //! - [`verify_candidate`]: one candidate's check, stage by stage;
+//! - [`MergeDetector`]: the same check against the older maps of the
+//!   atlas (map merging; the merge itself is `Map::absorb` then
+//!   [`correct_loop`]);
 //! - [`correct_loop`]: the correction;
 //! - [`build_essential_graph`] / [`optimise_essential_graph`]: the pose graph;
 //! - [`snapshot_global_ba`] → [`solve_global_ba`] → [`apply_global_ba`]: the
@@ -21,6 +24,7 @@ mod correct;
 mod detector;
 mod essential_graph;
 mod global_ba;
+mod merge;
 mod relocalisation;
 mod thresholds;
 mod verify;
@@ -37,8 +41,9 @@ pub use global_ba::{
     apply_global_ba, snapshot_global_ba, solve_global_ba, GlobalBaSnapshot, GlobalBaSummary,
     SolvedGlobalBa, GLOBAL_BA_ITERATIONS,
 };
+pub use merge::{AcceptedMerge, MergeDetector, MergeOutcome};
 pub use relocalisation::{DatabaseRelocaliser, RELOCALISATION_CANDIDATES};
 pub use thresholds::LoopThresholds;
 pub use verify::{
-    confirm_with, verify_candidate, Confirmation, LoopStage, Verification, VerifiedLoop,
+    confirm_across, confirm_with, verify_across, verify_candidate, Confirmation, LoopStage, Verification, VerifiedLoop,
 };

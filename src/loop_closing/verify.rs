@@ -110,8 +110,22 @@ pub fn verify_candidate(
     rig: &StereoRig,
     th: &LoopThresholds,
 ) -> Result<Verification, SlamError> {
+    verify_across(map, query, map, candidate, rig, th)
+}
+
+/// [`verify_candidate`] with the query keyframe in `query_map` and the
+/// candidate in `map` (a merge candidate in another map of the atlas; the
+/// same map for a loop). The pose found is the query's in `map`'s frame.
+pub fn verify_across(
+    query_map: &Map,
+    query: KeyFrameId,
+    map: &Map,
+    candidate: KeyFrameId,
+    rig: &StereoRig,
+    th: &LoopThresholds,
+) -> Result<Verification, SlamError> {
     let rejected = |stage, count| Ok(Verification::Rejected { stage, count });
-    let Ok(query_kf) = map.keyframe(query) else {
+    let Ok(query_kf) = query_map.keyframe(query) else {
         return rejected(LoopStage::DescriptorMatches, 0);
     };
     let (group, points) = candidate_group(map, candidate, th.group_size);
@@ -188,7 +202,20 @@ pub fn confirm_with(
     group_points: &[MapPointId],
     rig: &StereoRig,
 ) -> Result<Confirmation, SlamError> {
-    let Ok(keyframe) = map.keyframe(kf) else {
+    confirm_across(map, kf, map, correction, group_points, rig)
+}
+
+/// [`confirm_with`] with keyframe `kf` in `query_map` and the group's
+/// points in `map` (a merge: two maps of the atlas).
+pub fn confirm_across(
+    query_map: &Map,
+    kf: KeyFrameId,
+    map: &Map,
+    correction: &Se3,
+    group_points: &[MapPointId],
+    rig: &StereoRig,
+) -> Result<Confirmation, SlamError> {
+    let Ok(keyframe) = query_map.keyframe(kf) else {
         return Ok(Confirmation {
             inliers: 0,
             pose_cw: *correction,

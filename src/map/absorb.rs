@@ -28,11 +28,11 @@ impl Map {
     /// (ORB-SLAM3's `ChangeParent` in `MergeLocal`), so this map's root
     /// stays the root.
     ///
-    /// Nothing changes when the ids overlap ([`MapError::IdCollision`]) or
+    /// `other` is left empty. Nothing changes, in either map, when the ids overlap ([`MapError::IdCollision`]) or
     /// a join keyframe is not live ([`MapError::JoinAtUnknownKeyFrame`]).
     pub fn absorb(
         &mut self,
-        mut other: Map,
+        other: &mut Map,
         t_self_other: &Se3,
         join: (KeyFrameId, KeyFrameId),
     ) -> Result<()> {
@@ -43,7 +43,8 @@ impl Map {
         if !self.keyframes.contains_key(&self_kf) {
             return Err(MapError::JoinAtUnknownKeyFrame(self_kf));
         }
-        self.check_disjoint(&other)?;
+        self.check_disjoint(other)?;
+        let mut other = std::mem::take(other);
         other.join_tree_at(other_kf);
         let to_other = t_self_other.inverse();
         for (id, mut kf) in std::mem::take(&mut other.keyframes) {
@@ -188,13 +189,14 @@ mod tests {
     #[test]
     fn overlapping_ids_are_refused_and_nothing_changes() {
         let mut a = small_map(Map::new(), 3);
-        let b = small_map(Map::new(), 3);
+        let mut b = small_map(Map::new(), 3);
         let before = a.keyframe_count();
-        let r = a.absorb(b, &Se3::identity(), (KeyFrameId(1), KeyFrameId(1)));
+        let r = a.absorb(&mut b, &Se3::identity(), (KeyFrameId(1), KeyFrameId(1)));
         assert!(matches!(r, Err(MapError::IdCollision { .. })), "{r:?}");
         assert_eq!(a.keyframe_count(), before);
-        let c = small_map(Map::with_id_base(100), 2);
-        let r = a.absorb(c, &Se3::identity(), (KeyFrameId(7), KeyFrameId(0)));
+        assert_eq!(b.keyframe_count(), 3);
+        let mut c = small_map(Map::with_id_base(100), 2);
+        let r = a.absorb(&mut c, &Se3::identity(), (KeyFrameId(7), KeyFrameId(0)));
         assert_eq!(r, Err(MapError::JoinAtUnknownKeyFrame(KeyFrameId(7))));
     }
 }

@@ -130,6 +130,22 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
         Ok(())
     }
 
+    /// The stored descriptor of `keyframe`.
+    pub fn descriptor(&self, keyframe: K) -> Option<&[f32]> {
+        let i = *self.slot.get(&keyframe)?;
+        self.data.get(i * self.dim..(i + 1) * self.dim)
+    }
+
+    /// Moves every entry of `other` into this database (a map merge);
+    /// an entry of a keyframe stored in both takes `other`'s descriptor.
+    pub fn absorb(&mut self, other: Self) -> Result<(), PlaceError> {
+        for (i, k) in other.ids.iter().enumerate() {
+            let row = other.data.get(i * other.dim..(i + 1) * other.dim);
+            self.insert(*k, row.unwrap_or_default())?;
+        }
+        Ok(())
+    }
+
     /// Removes `keyframe` (a culled keyframe). Returns whether it was stored.
     pub fn erase(&mut self, keyframe: K) -> bool {
         let Some(i) = self.slot.remove(&keyframe) else {

@@ -3,10 +3,15 @@
 //! Tracking works in the active map, the newest. When it stays lost, the
 //! system starts a new map instead of waiting forever; older maps are kept,
 //! with their keyframes and points, so the frames tracked in them stay in
-//! the trajectory. Loop closing will merge a map into another (ORB-SLAM3's
-//! `MergeLocal`) through [`Atlas::maps`]: the seam is the map id each frame
-//! record carries, and the anchoring [`crate::system::StereoSlam::trajectory`]
-//! computes from it, which a merge would replace by the merge transform.
+//! the trajectory. Loop closing merges the active map into an older one
+//! when it finds a place they share (ORB-SLAM3's `MergeLocal`): the older
+//! map absorbs the active one's keyframes and points and becomes active
+//! again ([`Atlas::merge_active_into`]); the absorbed map stays in the
+//! list, empty, with [`AtlasMap::merged_into`] set.
+//!
+//! Each map issues its keyframe and point ids from its own base
+//! ([`Map::with_id_base`]: map `i` from `i·2⁴⁰`), so ids stay unique over
+//! the atlas and survive a merge.
 
 use crate::map::{Map, SharedMap};
 
@@ -22,12 +27,20 @@ pub struct AtlasMap {
     pub map: SharedMap,
     /// Index of the first input frame processed in it.
     pub first_frame: usize,
+    /// The map it was merged into, if it was.
+    pub merged_into: Option<MapIndex>,
+}
+
+/// Ids of map `index` start at `index · 2⁴⁰`.
+fn id_base(index: MapIndex) -> u64 {
+    (index as u64) << 40
 }
 
 /// Every map made so far; the last one is active.
 #[derive(Debug)]
 pub struct Atlas {
     maps: Vec<AtlasMap>,
+    active: MapIndex,
 }
 
 impl Default for Atlas {
@@ -42,16 +55,41 @@ impl Atlas {
         Self {
             maps: vec![AtlasMap {
                 index: 0,
-                map: Map::new().into_shared(),
+                map: Map::with_id_base(id_base(0)).into_shared(),
                 first_frame: 0,
+                merged_into: None,
             }],
+            active: 0,
         }
     }
 
     /// The active map.
     pub fn active(&self) -> &AtlasMap {
-        // `maps` is never empty: `new` makes one and nothing removes any.
-        &self.maps[self.maps.len() - 1]
+        // `active` always indexes `maps`, which is never empty: `new` makes
+        // one and nothing removes any.
+        &self.maps[self.active]
+    }
+
+    /// The maps loop closing may merge the active one with: every other
+    /// map not merged already.
+    pub fn mergeable(&self) -> impl Iterator<Item = &AtlasMap> {
+        self.maps
+            .iter()
+            .filter(|m| m.index != self.active && m.merged_into.is_none())
+    }
+
+    /// Records that the active map was absorbed into `into`, which becomes
+    /// active; returns the absorbed map's index, or `None` (nothing
+    /// changed) when `into` is the active map, merged or unknown.
+    pub fn merge_active_into(&mut self, into: MapIndex) -> Option<MapIndex> {
+        let target = self.maps.get(into)?;
+        if into == self.active || target.merged_into.is_some() {
+            return None;
+        }
+        let merged = self.active;
+        self.maps[merged].merged_into = Some(into);
+        self.active = into;
+        Some(merged)
     }
 
     /// Adds an empty map, active from frame `first_frame`; returns its index.
@@ -59,9 +97,11 @@ impl Atlas {
         let index = self.maps.len();
         self.maps.push(AtlasMap {
             index,
-            map: Map::new().into_shared(),
+            map: Map::with_id_base(id_base(index)).into_shared(),
             first_frame,
+            merged_into: None,
         });
+        self.active = index;
         index
     }
 
@@ -91,5 +131,21 @@ mod tests {
         assert_eq!(atlas.maps().len(), 2);
         assert!(atlas.get(0).is_some());
         assert!(atlas.get(2).is_none());
+    }
+
+    #[test]
+    fn merging_makes_the_older_map_active_and_marks_the_absorbed_one() {
+        let mut atlas = Atlas::new();
+        atlas.start_new_map(10);
+        assert_eq!(atlas.mergeable().map(|m| m.index).collect::<Vec<_>>(), [0]);
+        assert_eq!(atlas.merge_active_into(1), None, "the active map itself");
+        assert_eq!(atlas.merge_active_into(5), None, "no such map");
+        assert_eq!(atlas.merge_active_into(0), Some(1));
+        assert_eq!(atlas.active().index, 0);
+        assert_eq!(atlas.get(1).and_then(|m| m.merged_into), Some(0));
+        assert_eq!(atlas.mergeable().count(), 0);
+        // A new map after a merge is active, and the absorbed one stays out.
+        assert_eq!(atlas.start_new_map(50), 2);
+        assert_eq!(atlas.mergeable().map(|m| m.index).collect::<Vec<_>>(), [0]);
     }
 }

@@ -1,7 +1,11 @@
 //! The loop-closing stage of the system: every keyframe local mapping has
-//! processed is checked for a loop ([`LoopDetector`]); an accepted loop is
-//! corrected on the map ([`correct_loop`]) while local mapping is paused,
-//! and recorded. The records name input frames, not keyframe ids.
+//! processed is checked for a loop ([`LoopDetector`]) and, when the atlas
+//! holds older maps, for a merge with one of them ([`MergeDetector`]); an
+//! accepted loop is corrected on the map ([`correct_loop`]), an accepted
+//! merge absorbs the active map into the older one (`Map::absorb`, then
+//! the same correction fuses the duplicates), while local mapping is
+//! paused; both are recorded. The records name input frames, not keyframe
+//! ids.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -10,10 +14,14 @@ use serde::Serialize;
 
 use crate::camera::StereoRig;
 use crate::error::SlamError;
+use std::collections::BTreeMap;
+
+use crate::error::MapContext;
 use crate::loop_closing::{
-    correct_loop, AcceptedLoop, LoopCorrection, LoopDetector, LoopStage, LoopThresholds,
-    SharedKeyframeDatabase,
+    correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, LoopCorrection, LoopDetector,
+    LoopStage, LoopThresholds, MergeDetector, SharedKeyframeDatabase,
 };
+use crate::optim::{LieGroup, Se3};
 use crate::map::{KeyFrameId, Map, SharedMap};
 use crate::place::GlobalDescriptor;
 
@@ -36,6 +44,30 @@ pub struct LoopRecord {
     pub correction: LoopCorrection,
 }
 
+/// An accepted merge of the active map into an older map of the atlas.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MergeRecord {
+    /// Input frame of the keyframe that detected it (in the merged map).
+    pub query_frame: usize,
+    /// Input frame of the older map's keyframe it matched.
+    pub match_frame: usize,
+    /// The atlas map absorbed (the active one until then).
+    pub merged_map: usize,
+    /// The atlas map it was absorbed into (active from then on).
+    pub into_map: usize,
+    /// Inliers of the last pose optimisation.
+    pub inliers: usize,
+    /// Keyframes that agreed, the detecting one included.
+    pub confirmations: usize,
+    /// Length of the translation of `T_into,merged` (metres): where the
+    /// merged map's frame sits in the older map's.
+    pub transform_m: f64,
+    /// Its rotation (degrees).
+    pub transform_deg: f64,
+    /// The fusion and essential-graph correction that followed.
+    pub correction: LoopCorrection,
+}
+
 /// A candidate that passed the descriptor stage and was rejected later.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct RejectedLoopRecord {
@@ -49,14 +81,28 @@ pub struct RejectedLoopRecord {
     pub stage: LoopStage,
     /// The count reached there.
     pub count: usize,
+    /// For a merge candidate, the older atlas map it is in.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub other_map: Option<usize>,
+}
+
+/// What the check of one keyframe accepted.
+#[derive(Debug, Clone)]
+pub(crate) enum Detection {
+    /// A loop in the active map.
+    Loop(AcceptedLoop),
+    /// A common place with an older map.
+    Merge(AcceptedMerge),
 }
 
 /// Keyframes waiting for the loop check, the detector and what it found.
 #[derive(Debug)]
 pub(crate) struct LoopClosingStage {
     detector: LoopDetector,
+    merger: MergeDetector,
     queue: VecDeque<KeyFrameId>,
     loops: Vec<LoopRecord>,
+    merges: Vec<MergeRecord>,
     rejected: Vec<RejectedLoopRecord>,
 }
 
@@ -73,8 +119,10 @@ impl LoopClosingStage {
     ) -> Result<Self, SlamError> {
         Ok(Self {
             detector: LoopDetector::new(descriptor, thresholds)?,
+            merger: MergeDetector::new(thresholds),
             queue: VecDeque::new(),
             loops: Vec::new(),
+            merges: Vec::new(),
             rejected: Vec::new(),
         })
     }
@@ -84,11 +132,26 @@ impl LoopClosingStage {
         self.queue.push_back(kf);
     }
 
-    /// Starts over on a new map: the database and the queue are emptied;
-    /// the records stay.
-    pub(crate) fn new_map(&mut self) -> Result<(), SlamError> {
+    /// Starts over on a new map: the database of the map left
+    /// (`finished`) is archived for merging, the queue emptied; the
+    /// records stay.
+    pub(crate) fn new_map(&mut self, finished: usize) -> Result<(), SlamError> {
         self.queue.clear();
+        let database = self.detector.take_database()?;
+        self.merger.archive(finished, database);
+        Ok(())
+    }
+
+    /// Starts over with an empty atlas: every database emptied.
+    pub(crate) fn reset(&mut self) -> Result<(), SlamError> {
+        self.queue.clear();
+        self.merger.clear();
         self.detector.clear()
+    }
+
+    /// Accepted merges so far.
+    pub(crate) fn merges(&self) -> &[MergeRecord] {
+        &self.merges
     }
 
     /// The detector's keyframe database, shared (relocalisation queries it;
@@ -107,14 +170,17 @@ impl LoopClosingStage {
         &self.rejected
     }
 
-    /// Checks the next queued keyframe; returns an accepted loop, to be
-    /// corrected with [`Self::correct`], or `None` (also when the queue is
-    /// empty: see [`Self::has_queued`]).
+    /// Checks the next queued keyframe of `map` for a loop, then, when
+    /// none is found, against the older maps `others` (atlas index → map)
+    /// for a merge; returns what to correct with [`Self::correct`] or
+    /// [`Self::merge`], or `None` (also when the queue is empty: see
+    /// [`Self::has_queued`]).
     pub(crate) fn detect_next(
         &mut self,
         map: &SharedMap,
+        others: &BTreeMap<usize, SharedMap>,
         rig: &StereoRig,
-    ) -> Result<Option<AcceptedLoop>, SlamError> {
+    ) -> Result<Option<Detection>, SlamError> {
         let Some(kf) = self.queue.pop_front() else {
             return Ok(None);
         };
@@ -127,9 +193,95 @@ impl LoopClosingStage {
                 score: r.score,
                 stage: r.stage,
                 count: r.count,
+                other_map: None,
             });
         }
-        Ok(outcome.accepted)
+        if let Some(accepted) = outcome.accepted {
+            return Ok(Some(Detection::Loop(accepted)));
+        }
+        if !self.merger.has_archived() {
+            return Ok(None);
+        }
+        let Some(descriptor) = self.detector.describe(&map, kf)? else {
+            return Ok(None);
+        };
+        let mut guards = BTreeMap::new();
+        for (index, other) in others {
+            guards.insert(*index, other.read().map_err(|_| SlamError::PoisonedMap)?);
+        }
+        let older: BTreeMap<usize, &Map> = guards.iter().map(|(i, g)| (*i, &**g)).collect();
+        let outcome = self.merger.process(&map, kf, &descriptor, &older, rig)?;
+        for (tag, r) in outcome.rejected {
+            self.rejected.push(RejectedLoopRecord {
+                query_frame: frame_of(&map, r.query),
+                candidate_frame: older.get(&tag).map_or(0, |m| frame_of(m, r.candidate)),
+                score: r.score,
+                stage: r.stage,
+                count: r.count,
+                other_map: Some(tag),
+            });
+        }
+        Ok(outcome.accepted.map(Detection::Merge))
+    }
+
+    /// Merges the active map (`active`, atlas index `active_index`) into
+    /// the older map of an accepted merge (`target`): the active map's
+    /// keyframes and points move into the older map's frame
+    /// (`Map::absorb`; `active` is left empty), the duplicates are fused
+    /// and the essential graph optimised ([`correct_loop`]), and the two
+    /// keyframe databases become one. Local mapping must not run meanwhile.
+    pub(crate) fn merge(
+        &mut self,
+        active: &SharedMap,
+        active_index: usize,
+        target: &SharedMap,
+        accepted: &AcceptedMerge,
+        rig: &StereoRig,
+    ) -> Result<MergeRecord, SlamError> {
+        let mut from = active.write().map_err(|_| SlamError::PoisonedMap)?;
+        let mut into = target.write().map_err(|_| SlamError::PoisonedMap)?;
+        let common = &accepted.common;
+        let query_frame = frame_of(&from, common.query);
+        let match_frame = frame_of(&into, common.candidate);
+        into.absorb(
+            &mut from,
+            &accepted.t_target_active,
+            (common.query, common.candidate),
+        )
+        .in_stage("map merge")?;
+        let correction = correct_loop(&mut into, common, rig)?;
+        let mut database = self
+            .merger
+            .take_archived(accepted.target)
+            .map_or_else(|| self.detector.take_database(), Ok)?;
+        database
+            .absorb(self.detector.take_database()?)
+            .in_stage("keyframe database merge")?;
+        self.detector.replace_database(database);
+        let (transform_m, transform_deg) =
+            pose_difference(&Se3::identity(), &accepted.t_target_active);
+        let record = MergeRecord {
+            query_frame,
+            match_frame,
+            merged_map: active_index,
+            into_map: accepted.target,
+            inliers: common.inliers,
+            confirmations: common.confirmations,
+            transform_m,
+            transform_deg,
+            correction,
+        };
+        tracing::info!(
+            query_frame,
+            match_frame,
+            merged_map = active_index,
+            into_map = accepted.target,
+            inliers = common.inliers,
+            transform_m,
+            "maps merged"
+        );
+        self.merges.push(record);
+        Ok(record)
     }
 
     /// Whether keyframes wait for the check.

@@ -21,6 +21,6 @@ mod stereo_slam;
 
 pub use atlas::{Atlas, AtlasMap, MapIndex};
 pub use local_mapping_thread::{MappingResult, MappingThread};
-pub use loop_closing_stage::{LoopRecord, RejectedLoopRecord};
+pub use loop_closing_stage::{LoopRecord, MergeRecord, RejectedLoopRecord};
 pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 pub use stereo_slam::StereoSlam;

@@ -72,7 +72,8 @@ pub struct MapSummary {
     pub index: MapIndex,
     /// First input frame processed in it.
     pub first_frame: usize,
-    /// Input frames processed while it was active.
+    /// Input frames processed while it was active (after a merge, the
+    /// absorbed map's frames count for the map it was merged into).
     pub frames: usize,
     /// Frames tracked in it.
     pub tracked: usize,
@@ -84,6 +85,9 @@ pub struct MapSummary {
     /// known before the map began) anchors the map's first pose in the
     /// trajectory, which is in the first map's frame.
     pub anchored_at_frame: Option<usize>,
+    /// The map it was merged into, if loop closing merged it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub merged_into: Option<MapIndex>,
 }
 
 /// Totals over the frames processed so far.

@@ -26,7 +26,9 @@ use crate::tracking::{
 use super::atlas::{Atlas, MapIndex};
 use super::global_ba_thread::{run_global_ba, GlobalBaThread};
 use super::local_mapping_thread::{MappingResult, MappingThread};
-use super::loop_closing_stage::{LoopClosingStage, LoopRecord, RejectedLoopRecord};
+use super::loop_closing_stage::{
+    Detection, LoopClosingStage, LoopRecord, MergeRecord, RejectedLoopRecord,
+};
 use super::records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 
 /// Where local mapping runs.
@@ -108,34 +110,83 @@ impl StereoSlam {
         self.loop_closing.as_ref().map_or(&[], |l| l.loops())
     }
 
-    /// The loop candidates that passed the descriptor stage and were
-    /// rejected later.
+    /// The merges of the active map into an older one so far.
+    pub fn merges(&self) -> &[MergeRecord] {
+        self.loop_closing.as_ref().map_or(&[], |l| l.merges())
+    }
+
+    /// The loop and merge candidates that passed the descriptor stage and
+    /// were rejected later.
     pub fn rejected_loops(&self) -> &[RejectedLoopRecord] {
         self.loop_closing.as_ref().map_or(&[], |l| l.rejected())
     }
 
     /// Checks the keyframes local mapping has processed for loops and
-    /// corrects the map with the accepted ones (local mapping paused).
+    /// merges, and corrects the map with the accepted ones (local mapping
+    /// paused).
     fn close_loops(&mut self) -> Result<(), SlamError> {
         loop {
             let map = self.atlas.active().map.clone();
+            let others: BTreeMap<MapIndex, SharedMap> = self
+                .atlas
+                .mergeable()
+                .map(|m| (m.index, m.map.clone()))
+                .collect();
             let Some(stage) = self.loop_closing.as_mut() else {
                 return Ok(());
             };
             if !stage.has_queued() {
                 return Ok(());
             }
-            let Some(accepted) = stage.detect_next(&map, &self.rig)? else {
+            let Some(detection) = stage.detect_next(&map, &others, &self.rig)? else {
                 continue;
             };
             // A running global BA works on poses the correction replaces.
             self.abort_global_ba();
             let paused = self.pause_mapping()?;
-            if let Some(stage) = self.loop_closing.as_mut() {
-                stage.correct(&map, &accepted, &self.rig)?;
+            let corrected = match detection {
+                Detection::Loop(accepted) => {
+                    if let Some(stage) = self.loop_closing.as_mut() {
+                        stage.correct(&map, &accepted, &self.rig)?;
+                    }
+                    map
+                }
+                Detection::Merge(accepted) => {
+                    let target = others
+                        .get(&accepted.target)
+                        .cloned()
+                        .ok_or(SlamError::UnknownAtlasMap {
+                            map: accepted.target,
+                        })?;
+                    let active = self.atlas.active().index;
+                    if let Some(stage) = self.loop_closing.as_mut() {
+                        stage.merge(&map, active, &target, &accepted, &self.rig)?;
+                    }
+                    self.follow_merge(accepted.target);
+                    target
+                }
+            };
+            self.resume_mapping(paused, &corrected)?;
+            self.start_global_ba(&corrected)?;
+        }
+    }
+
+    /// After the active map was absorbed into map `into`: `into` becomes
+    /// active and the records of the absorbed map's frames name it (their
+    /// keyframe ids are unchanged, see [`Atlas`]).
+    fn follow_merge(&mut self, into: MapIndex) {
+        let Some(merged) = self.atlas.merge_active_into(into) else {
+            return;
+        };
+        for record in &mut self.records {
+            if record.map == merged {
+                record.map = into;
             }
-            self.resume_mapping(paused, &map)?;
-            self.start_global_ba(&map)?;
+            if let Some(rel) = record.relative_pose.as_mut() {
+                if rel.map == merged {
+                    rel.map = into;
+                }
+            }
         }
     }
 
@@ -312,7 +363,7 @@ impl StereoSlam {
         self.tracker = self.tracker.fresh();
         self.records.clear();
         if let Some(stage) = self.loop_closing.as_mut() {
-            stage.new_map()?;
+            stage.reset()?;
         }
         if threaded {
             self.spawn_mapping_thread()?;
@@ -387,9 +438,10 @@ impl StereoSlam {
         if let Mapping::Inline(mapper) = &mut self.mapping {
             *mapper = mapper.fresh();
         }
+        let finished = self.atlas.active().index;
         let new_map = self.atlas.start_new_map(index);
         if let Some(stage) = self.loop_closing.as_mut() {
-            stage.new_map()?;
+            stage.new_map(finished)?;
         }
         tracing::info!(
             frame = index,
@@ -647,6 +699,7 @@ impl StereoSlam {
                 first_frame: entry.first_frame,
                 keyframes: map.keyframe_count(),
                 map_points: map.map_point_count(),
+                merged_into: entry.merged_into,
                 ..MapSummary::default()
             });
         }

@@ -9,7 +9,9 @@ use spslam::eval::{write_kitti, write_tum, EvalReport, Trajectory};
 use spslam::loop_closing::GlobalBaSummary;
 use spslam::optim::Se3;
 use spslam::settings::SlamSettings;
-use spslam::system::{FrameRecord, LoopRecord, RejectedLoopRecord, SlamSummary, StereoSlam};
+use spslam::system::{
+    FrameRecord, LoopRecord, MergeRecord, RejectedLoopRecord, SlamSummary, StereoSlam,
+};
 
 use super::evaluation::{evaluate_run, Drift};
 use super::frame_loop::{RunEnd, UnreadableFrame};
@@ -68,6 +70,9 @@ struct RunReport<'a> {
     /// Loop candidates that passed the descriptor stage and were rejected
     /// later, with the stage and the count reached there.
     rejected_loops: &'a [RejectedLoopRecord],
+    /// Merges of the active map into an older map of the atlas: query and
+    /// match input frames, the maps, inliers, the transform between them.
+    merges: &'a [MergeRecord],
     /// The global bundle adjustments run after the corrections.
     global_ba: &'a [GlobalBaSummary],
     frames: &'a [FrameRecord],
@@ -107,9 +112,11 @@ fn loop_links(slam: &StereoSlam) -> Vec<(f64, f64)> {
             .find(|r| r.index == frame)
             .map(|r| r.timestamp)
     };
-    slam.loops()
-        .iter()
-        .filter_map(|l| Some((time(l.query_frame)?, time(l.match_frame)?)))
+    let loops = slam.loops().iter().map(|l| (l.query_frame, l.match_frame));
+    let merges = slam.merges().iter().map(|m| (m.query_frame, m.match_frame));
+    loops
+        .chain(merges)
+        .filter_map(|(q, m)| Some((time(q)?, time(m)?)))
         .collect()
 }
 
@@ -134,9 +141,33 @@ fn loops_text(loops: &[LoopRecord], rejected: &[RejectedLoopRecord]) -> String {
         ));
     }
     for r in rejected {
+        let kind = match r.other_map {
+            Some(m) => format!("merge candidate in map {m}"),
+            None => "loop candidate".to_string(),
+        };
         text.push_str(&format!(
-            "rejected loop candidate: frame {} -> frame {} (score {:.3}) at {:?} ({})\n",
+            "rejected {kind}: frame {} -> frame {} (score {:.3}) at {:?} ({})\n",
             r.query_frame, r.candidate_frame, r.score, r.stage, r.count
+        ));
+    }
+    text
+}
+
+/// One line per merge of the active map into an older one.
+fn merges_text(merges: &[MergeRecord]) -> String {
+    let mut text = String::new();
+    for m in merges {
+        text.push_str(&format!(
+            "map merge: map {} into map {} at frame {} -> frame {}, {} inliers, {} confirmations, maps {:.2} m / {:.1} deg apart, {} points fused\n",
+            m.merged_map,
+            m.into_map,
+            m.query_frame,
+            m.match_frame,
+            m.inliers,
+            m.confirmations,
+            m.transform_m,
+            m.transform_deg,
+            m.correction.fused
         ));
     }
     text
@@ -169,12 +200,15 @@ fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
             "map {}: first frame {}, {} frames, {} tracked, {} keyframes, {} map points",
             m.index, m.first_frame, m.frames, m.tracked, m.keyframes, m.map_points
         ));
-        match (m.index, m.anchored_at_frame) {
-            (0, _) => {}
-            (k, Some(n)) => text.push_str(&format!(
+        match (m.index, m.anchored_at_frame, m.merged_into) {
+            (_, _, Some(into)) => text.push_str(&format!(
+                "; merged into map {into}: its keyframes, points and frames are in that map now"
+            )),
+            (0, _, _) => {}
+            (k, Some(n), _) => text.push_str(&format!(
                 "; anchored at frame {n}: frames of map {k} are anchored at the pose of frame {n}, the last known before the loss"
             )),
-            (_, None) => {
+            (_, None, _) => {
                 text.push_str("; no frame tracked in it: its frames repeat the last known pose")
             }
         }
@@ -241,6 +275,7 @@ impl RunOutputs<'_> {
             }
         };
         text.push_str(&loops_text(slam.loops(), slam.rejected_loops()));
+        text.push_str(&merges_text(slam.merges()));
         for g in slam.global_ba_runs() {
             text.push_str(&if g.aborted {
                 "global BA: aborted by a newer loop\n".to_string()
@@ -293,6 +328,7 @@ impl RunOutputs<'_> {
             drift,
             loops: slam.loops(),
             rejected_loops: slam.rejected_loops(),
+            merges: slam.merges(),
             global_ba: slam.global_ba_runs(),
             frames: records,
         };

@@ -1,0 +1,228 @@
+//! Merge detection: the active map's keyframes against the older maps of
+//! the atlas, as the merge branch of ORB-SLAM3's
+//! `LoopClosing::NewDetectCommonRegions` (stereo: SE3).
+//!
+//! Each older map keeps its keyframe database ([`MergeDetector::archive`]
+//! when the system leaves it). A keyframe of the active map queries every
+//! archived database (no covisibility to exclude: the maps share no
+//! keyframe); the best candidates over all of them get the same
+//! multi-stage check as a loop ([`verify_across`]), then the same
+//! confirmation: the detecting keyframe and its covisible keyframes moved
+//! by the correction must reach [`LoopThresholds::confirmations`], counting
+//! the keyframes that verified the same map just before it (up to
+//! [`LoopThresholds::max_misses`] may fail in between).
+//!
+//! Read only on the maps: the caller merges them (`Map::absorb`, then the
+//! loop correction fuses the duplicates).
+
+use std::collections::{BTreeMap, HashSet};
+
+use crate::camera::StereoRig;
+use crate::error::{MapContext, SlamError};
+use crate::map::{KeyFrameId, Map};
+use crate::optim::{LieGroup, Se3};
+use crate::place::{KeyframeDatabase, QueryOptions};
+
+use super::detector::{AcceptedLoop, RejectedCandidate};
+use super::thresholds::LoopThresholds;
+use super::verify::{candidate_group, confirm_across, verify_across, LoopStage, Verification};
+
+/// A merge the detector accepted.
+#[derive(Debug, Clone)]
+pub struct AcceptedMerge {
+    /// The older map's tag (its index in the caller's atlas).
+    pub target: usize,
+    /// `T_target,active`: takes the active map's world frame to the
+    /// target's (`X_target = T · X_active`).
+    pub t_target_active: Se3,
+    /// The query keyframe (active map), the candidate (target map), the
+    /// query's pose in the target's frame and its matches there.
+    pub common: AcceptedLoop,
+}
+
+/// What one keyframe's merge check found.
+#[derive(Debug, Clone, Default)]
+pub struct MergeOutcome {
+    /// The merge to carry out now, if any.
+    pub accepted: Option<AcceptedMerge>,
+    /// Candidates rejected after the descriptor stage, with their map's tag.
+    pub rejected: Vec<(usize, RejectedCandidate)>,
+}
+
+/// Verified keyframes of one target map, waiting for enough of them.
+#[derive(Debug, Clone, Copy)]
+struct Streak {
+    target: usize,
+    confirmations: usize,
+    misses: usize,
+}
+
+/// The archived databases and the confirmation streak.
+pub struct MergeDetector {
+    thresholds: LoopThresholds,
+    archived: BTreeMap<usize, KeyframeDatabase<KeyFrameId>>,
+    streak: Option<Streak>,
+}
+
+impl std::fmt::Debug for MergeDetector {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("MergeDetector")
+            .field("archived_maps", &self.archived.keys().collect::<Vec<_>>())
+            .field("streak", &self.streak)
+            .finish()
+    }
+}
+
+impl MergeDetector {
+    /// A detector with no archived map.
+    pub fn new(thresholds: LoopThresholds) -> Self {
+        Self {
+            thresholds,
+            archived: BTreeMap::new(),
+            streak: None,
+        }
+    }
+
+    /// Keeps the database of a map the system left, under `tag`.
+    pub fn archive(&mut self, tag: usize, database: KeyframeDatabase<KeyFrameId>) {
+        if !database.is_empty() {
+            self.archived.insert(tag, database);
+        }
+    }
+
+    /// Takes an archived database back (its map became active again).
+    pub fn take_archived(&mut self, tag: usize) -> Option<KeyframeDatabase<KeyFrameId>> {
+        self.streak = None;
+        self.archived.remove(&tag)
+    }
+
+    /// Whether any older map can be merged with.
+    pub fn has_archived(&self) -> bool {
+        !self.archived.is_empty()
+    }
+
+    /// Forgets every archived map (a reset).
+    pub fn clear(&mut self) {
+        self.archived.clear();
+        self.streak = None;
+    }
+
+    /// Checks keyframe `kf` of `active`, with global descriptor
+    /// `descriptor`, against the archived maps (`maps`: tag → map; a tag
+    /// without a map is skipped).
+    pub fn process(
+        &mut self,
+        active: &Map,
+        kf: KeyFrameId,
+        descriptor: &[f32],
+        maps: &BTreeMap<usize, &Map>,
+        rig: &StereoRig,
+    ) -> Result<MergeOutcome, SlamError> {
+        let th = self.thresholds;
+        let mut outcome = MergeOutcome::default();
+        if active.keyframe_count() < th.min_keyframes {
+            return Ok(outcome);
+        }
+        let mut candidates: Vec<(f32, usize, KeyFrameId)> = Vec::new();
+        let options = QueryOptions {
+            n_best: th.candidates,
+            group_size: th.group_size,
+            ..QueryOptions::default()
+        };
+        for (tag, database) in &self.archived {
+            let Some(map) = maps.get(tag) else {
+                continue;
+            };
+            let found = database
+                .query(
+                    descriptor,
+                    &HashSet::new(),
+                    |k| map.best_covisible(k, 10),
+                    &options,
+                )
+                .in_stage("merge database query")?;
+            candidates.extend(found.into_iter().map(|c| (c.score, *tag, c.keyframe)));
+        }
+        candidates.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        candidates.truncate(th.candidates);
+        for (score, tag, candidate) in candidates {
+            let Some(map) = maps.get(&tag) else {
+                continue;
+            };
+            let verified = match verify_across(active, kf, map, candidate, rig, &th)? {
+                Verification::Verified(v) => v,
+                Verification::Rejected { stage, count } => {
+                    if stage != LoopStage::DescriptorMatches {
+                        outcome.rejected.push((
+                            tag,
+                            RejectedCandidate {
+                                query: kf,
+                                candidate,
+                                score,
+                                stage,
+                                count,
+                            },
+                        ));
+                    }
+                    continue;
+                }
+            };
+            let query_pose = active.pose_cw_of(kf).in_stage("merge detection")?;
+            // The query moves from T_qw to T_qw·C; C takes target-world
+            // points to active-world ones.
+            let correction = query_pose.inverse().compose(&verified.pose_cw);
+            let (_, group_points) = candidate_group(map, candidate, th.group_size);
+            let mut confirmations = 1;
+            for other in active.best_covisible(kf, th.confirming_covisibles) {
+                let c = confirm_across(active, other, map, &correction, &group_points, rig)?;
+                if c.inliers >= th.min_confirmation_inliers {
+                    confirmations += 1;
+                }
+            }
+            let earlier = self
+                .streak
+                .filter(|s| s.target == tag)
+                .map_or(0, |s| s.confirmations);
+            let total = earlier + confirmations;
+            tracing::debug!(
+                keyframe = kf.0,
+                target = tag,
+                candidate = candidate.0,
+                inliers = verified.inliers,
+                confirmations,
+                total,
+                "merge verified"
+            );
+            if total < th.confirmations {
+                self.streak = Some(Streak {
+                    target: tag,
+                    confirmations: total,
+                    misses: 0,
+                });
+                return Ok(outcome);
+            }
+            self.streak = None;
+            outcome.accepted = Some(AcceptedMerge {
+                target: tag,
+                t_target_active: correction.inverse(),
+                common: AcceptedLoop {
+                    query: kf,
+                    candidate,
+                    group: verified.group,
+                    pose_cw: verified.pose_cw,
+                    matches: verified.matches,
+                    inliers: verified.inliers,
+                    confirmations: total,
+                },
+            });
+            return Ok(outcome);
+        }
+        if let Some(streak) = self.streak.as_mut() {
+            streak.misses += 1;
+            if streak.misses >= th.max_misses {
+                self.streak = None;
+            }
+        }
+        Ok(outcome)
+    }
+}
