@@ -177,7 +177,10 @@ impl LoopDetector {
     pub fn take_database(&mut self) -> Result<KeyframeDatabase<KeyFrameId>, SlamError> {
         let empty = KeyframeDatabase::new(self.descriptor.dim()).in_stage("keyframe database")?;
         self.pending = None;
-        Ok(std::mem::replace(&mut *write_database(&self.database), empty))
+        Ok(std::mem::replace(
+            &mut *write_database(&self.database),
+            empty,
+        ))
     }
 
     /// Replaces the database's entries in place (a merge made another map

@@ -45,5 +45,6 @@ pub use merge::{AcceptedMerge, MergeDetector, MergeOutcome};
 pub use relocalisation::{DatabaseRelocaliser, RELOCALISATION_CANDIDATES};
 pub use thresholds::LoopThresholds;
 pub use verify::{
-    confirm_across, confirm_with, verify_across, verify_candidate, Confirmation, LoopStage, Verification, VerifiedLoop,
+    confirm_across, confirm_with, verify_across, verify_candidate, Confirmation, LoopStage,
+    Verification, VerifiedLoop,
 };

@@ -157,10 +157,10 @@ mod tests {
             old.keyframe_count() + new.keyframe_count(),
             old.map_point_count() + new.map_point_count(),
         );
-        let absorbed = std::mem::take(&mut new);
         assert!(old
-            .absorb(absorbed, &t, (join_other, KeyFrameId(2)))
+            .absorb(&mut new, &t, (join_other, KeyFrameId(2)))
             .is_ok());
+        assert_eq!(new.keyframe_count(), 0);
         assert_eq!(old.keyframe_count(), kfs);
         assert_eq!(old.map_point_count(), points);
         assert_eq!(old.check_invariants(), Ok(()));

@@ -654,11 +654,7 @@ mod tests {
     use nalgebra::{UnitQuaternion, Vector3};
 
     use super::InvariantViolation;
-    use crate::features::pyramid::ScaleTables;
-    use crate::features::{DescriptorSet, Keypoint};
-    use crate::map::{
-        FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor, StereoMeasurement,
-    };
+    use crate::map::{KeyFrameId, Map, MapPointId, PointDescriptor};
     use crate::optim::Se3;
 
     use crate::map::tests_support::{measurements, DIM};

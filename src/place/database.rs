@@ -22,12 +22,26 @@
 //!
 //! Ties are broken by the keyframe id, so the result does not depend on the
 //! order of insertion.
+//!
+//! **Shortlist.** Long descriptors (more than 2 × [`SKETCH_DIM`] values: a
+//! raw VLAD has 16,384) also get a count sketch ([`super::sketch`]). When
+//! more than [`SHORTLIST`] keyframes are stored, step 1 ranks every
+//! keyframe by its sketch and computes the exact similarity of the best
+//! [`SHORTLIST`] only; the rest count as unscored. Up to [`SHORTLIST`]
+//! keyframes the query is exact; above, it differs from the brute-force
+//! one only when a keyframe's sketch rank is off by hundreds or when more
+//! than [`SHORTLIST`] keyframes reach the score cut.
 
 use std::collections::{HashMap, HashSet};
 use std::hash::Hash;
 
 use super::global_descriptor::dot;
+use super::sketch::{CountSketch, SKETCH_DIM};
 use super::PlaceError;
+
+/// Keyframes whose exact similarity a query computes when their sketches
+/// rank the database (see the module's docs).
+pub const SHORTLIST: usize = 256;
 
 /// How many candidates a query returns, and how groups are formed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -70,6 +84,9 @@ pub struct KeyframeDatabase<K> {
     ids: Vec<K>,
     data: Vec<f32>,
     slot: HashMap<K, usize>,
+    /// The sketch, for long descriptors, and the stored sketches.
+    sketch: Option<CountSketch>,
+    sketches: Vec<f32>,
 }
 
 impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
@@ -83,6 +100,8 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
             ids: Vec::new(),
             data: Vec::new(),
             slot: HashMap::new(),
+            sketch: (dim > 2 * SKETCH_DIM).then(|| CountSketch::new(dim)),
+            sketches: Vec::new(),
         })
     }
 
@@ -122,10 +141,18 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
         }
         if let Some(&i) = self.slot.get(&keyframe) {
             self.data[i * self.dim..(i + 1) * self.dim].copy_from_slice(descriptor);
+            if let Some(sketch) = &self.sketch {
+                let mut row = Vec::with_capacity(SKETCH_DIM);
+                sketch.push(descriptor, &mut row);
+                self.sketches[i * SKETCH_DIM..(i + 1) * SKETCH_DIM].copy_from_slice(&row);
+            }
         } else {
             self.slot.insert(keyframe, self.ids.len());
             self.ids.push(keyframe);
             self.data.extend_from_slice(descriptor);
+            if let Some(sketch) = &self.sketch {
+                sketch.push(descriptor, &mut self.sketches);
+            }
         }
         Ok(())
     }
@@ -157,10 +184,17 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
             self.ids[i] = moved;
             self.data
                 .copy_within(last * self.dim..(last + 1) * self.dim, i * self.dim);
+            if self.sketch.is_some() {
+                self.sketches
+                    .copy_within(last * SKETCH_DIM..(last + 1) * SKETCH_DIM, i * SKETCH_DIM);
+            }
             self.slot.insert(moved, i);
         }
         self.ids.pop();
         self.data.truncate(last * self.dim);
+        if self.sketch.is_some() {
+            self.sketches.truncate(last * SKETCH_DIM);
+        }
         true
     }
 
@@ -186,6 +220,43 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
             .collect())
     }
 
+    /// The exact similarity of the [`SHORTLIST`] keyframes not in
+    /// `exclude` whose sketches are most similar to `descriptor`'s.
+    fn shortlisted_similarities(
+        &self,
+        sketch: &CountSketch,
+        descriptor: &[f32],
+        exclude: &HashSet<K>,
+    ) -> Result<Vec<(K, f32)>, PlaceError> {
+        if descriptor.len() != self.dim {
+            return Err(PlaceError::RowLength {
+                expected: self.dim,
+                actual: descriptor.len(),
+            });
+        }
+        let mut query = Vec::with_capacity(SKETCH_DIM);
+        sketch.push(descriptor, &mut query);
+        let mut ranked: Vec<(f32, usize)> = self
+            .sketches
+            .chunks_exact(SKETCH_DIM)
+            .enumerate()
+            .filter(|(i, _)| !exclude.contains(&self.ids[*i]))
+            .map(|(i, row)| (dot(&query, row), i))
+            .collect();
+        let by_score = |a: &(f32, usize), b: &(f32, usize)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
+        if ranked.len() > SHORTLIST {
+            ranked.select_nth_unstable_by(SHORTLIST - 1, by_score);
+            ranked.truncate(SHORTLIST);
+        }
+        Ok(ranked
+            .into_iter()
+            .filter_map(|(_, i)| {
+                let row = self.data.get(i * self.dim..(i + 1) * self.dim)?;
+                Some((self.ids[i], dot(descriptor, row)))
+            })
+            .collect())
+    }
+
     /// The best candidates for `descriptor` (see the module's docs), best
     /// first. `covisible(k)` gives keyframe `k`'s covisible keyframes, best
     /// first; keyframes not stored are ignored.
@@ -207,7 +278,12 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
                 "a number in [0, 1]",
             ));
         }
-        let all = self.similarities(descriptor, exclude)?;
+        let all = match &self.sketch {
+            Some(sketch) if self.ids.len() > SHORTLIST => {
+                self.shortlisted_similarities(sketch, descriptor, exclude)?
+            }
+            _ => self.similarities(descriptor, exclude)?,
+        };
         let best = all
             .iter()
             .map(|&(_, s)| s)
@@ -390,5 +466,53 @@ mod tests {
         // Re-inserting replaces.
         db.insert(1, &[0.0, 1.0]).unwrap();
         assert_eq!(db.len(), 5);
+    }
+
+    /// Above [`SHORTLIST`] keyframes of long descriptors the query goes
+    /// through the sketches; on a database of places seen several times
+    /// (groups of similar descriptors among random ones), with erasures and
+    /// re-insertions, it returns what the brute-force reference returns.
+    #[test]
+    fn shortlisted_queries_match_the_brute_force_reference() {
+        let dim = 4 * SKETCH_DIM;
+        let mut rng = SeededRng::new(11);
+        let mut db = KeyframeDatabase::new(dim).unwrap();
+        let mut stored = BTreeMap::new();
+        let places: Vec<Vec<f32>> = (0..40).map(|_| unit(&mut rng, dim)).collect();
+        for k in 0..1200u32 {
+            let mut v = unit(&mut rng, dim);
+            if k % 3 == 0 {
+                // A view of place k/3 % 40: cosine about 0.7 with it.
+                let place = &places[(k as usize / 3) % 40];
+                v.iter_mut()
+                    .zip(place)
+                    .for_each(|(x, p)| *x = 0.7 * p + 0.7 * *x);
+                l2_normalise(&mut v);
+            }
+            db.insert(k, &v).unwrap();
+            stored.insert(k, v);
+        }
+        for k in (0..1200u32).step_by(7) {
+            assert!(db.erase(k));
+            stored.remove(&k);
+        }
+        let v = unit(&mut rng, dim);
+        db.insert(3, &v).unwrap();
+        stored.insert(3, v);
+        assert!(db.len() > SHORTLIST);
+        let covis = |k: u32| -> Vec<u32> { vec![(k + 3) % 1200, (k + 1197) % 1200] };
+        let options = QueryOptions::default();
+        for (n, place) in places.iter().enumerate() {
+            let mut q = unit(&mut rng, dim);
+            q.iter_mut()
+                .zip(place)
+                .for_each(|(x, p)| *x = 0.7 * p + 0.7 * *x);
+            l2_normalise(&mut q);
+            let exclude: HashSet<u32> = [n as u32 * 3].into_iter().collect();
+            let got = db.query(&q, &exclude, covis, &options).unwrap();
+            let want = reference(&stored, &q, &exclude, &covis, &options);
+            let got: Vec<(u32, f32)> = got.iter().map(|c| (c.keyframe, c.score)).collect();
+            assert_eq!(got, want, "place {n}");
+        }
     }
 }

@@ -29,13 +29,14 @@ pub mod kmeans;
 mod metric;
 mod rng;
 mod rows;
+pub mod sketch;
 pub mod vlad;
 mod vocabulary_tree;
 
 pub use codebook::{
     default_codebook_for, default_codebook_path, extractor_settings_hash, Codebook,
 };
-pub use database::{Candidate, KeyframeDatabase, QueryOptions};
+pub use database::{Candidate, KeyframeDatabase, QueryOptions, SHORTLIST};
 pub use error::PlaceError;
 pub use global_descriptor::GlobalDescriptor;
 pub use kmeans::{kmeans, kmeans_subset, KMeansOptions, KMeansResult};

@@ -21,8 +21,8 @@ use crate::loop_closing::{
     correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, LoopCorrection, LoopDetector,
     LoopStage, LoopThresholds, MergeDetector, SharedKeyframeDatabase,
 };
-use crate::optim::{LieGroup, Se3};
 use crate::map::{KeyFrameId, Map, SharedMap};
+use crate::optim::{LieGroup, Se3};
 use crate::place::GlobalDescriptor;
 
 /// An accepted, corrected loop.

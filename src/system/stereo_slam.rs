@@ -152,12 +152,11 @@ impl StereoSlam {
                     map
                 }
                 Detection::Merge(accepted) => {
-                    let target = others
-                        .get(&accepted.target)
-                        .cloned()
-                        .ok_or(SlamError::UnknownAtlasMap {
+                    let target = others.get(&accepted.target).cloned().ok_or(
+                        SlamError::UnknownAtlasMap {
                             map: accepted.target,
-                        })?;
+                        },
+                    )?;
                     let active = self.atlas.active().index;
                     if let Some(stage) = self.loop_closing.as_mut() {
                         stage.merge(&map, active, &target, &accepted, &self.rig)?;
