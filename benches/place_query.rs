@@ -1,4 +1,5 @@
-//! One keyframe-database query (brute-force cosine, covisibility groups) at
+//! One keyframe-database query (cosine, covisibility groups; the sketch
+//! shortlist above 256 keyframes for descriptors over 1,024 values) at
 //! 5,000 and 10,000 keyframes, with raw VLAD descriptors of the three
 //! codebook sizes studied (k × 256 values: k = 32, 64 (the default) and 128)
 //! and PCA-whitened ones (512 and 256 values). Random unit descriptors;
