@@ -12,7 +12,10 @@
 //! - kidnapping: the same two laps with blank frames early in the first
 //!   lap: tracking is lost, a new map starts, and the revisit of the first
 //!   map's area in the second lap merges the two maps into one; the ATE
-//!   over the frames with a pose is at most 2× the run without the gap.
+//!   over the frames with a pose is at most 2× the run without the gap;
+//! - the kidnapped run again with local mapping and loop detection on
+//!   their own threads (as `spslam run`): merged, one map at the end, ATE
+//!   within 0.3 % of the path.
 //!
 //! Every measured value is printed (`--nocapture`).
 
@@ -52,10 +55,24 @@ struct Run {
 /// SuperPoint stereo SLAM over the whole sequence, loop closing on or off,
 /// the frames in `blank` replaced by black images.
 fn run(sequence: &SyntheticSequence, loop_closing: bool, blank: Range<usize>) -> Run {
+    run_on(sequence, loop_closing, blank, false)
+}
+
+/// [`run`], with local mapping and loop detection on their own threads
+/// when `threaded` (as `spslam run`; not deterministic).
+fn run_on(
+    sequence: &SyntheticSequence,
+    loop_closing: bool,
+    blank: Range<usize>,
+    threaded: bool,
+) -> Run {
     let rig = rig_of(sequence);
     let config = ExtractorSettings::default().superpoint_config(1, 1);
     let sp = || Box::new(common::extractor(config.clone()));
     let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    if threaded {
+        ok(slam.spawn_mapping_thread());
+    }
     if loop_closing {
         let codebook = ok(Codebook::load_for(&default_codebook_for(&config), &config));
         ok(slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default()));
@@ -320,5 +337,48 @@ fn assert_kidnapped_run_merges(sequence: &SyntheticSequence, lap_frames: usize, 
         "ATE {} m with the gap vs {} m without",
         kidnapped.ate_tracked_m,
         reference.ate_tracked_m
+    );
+}
+
+#[test]
+fn a_kidnapped_run_with_mapping_and_loop_threads_merges_its_maps() {
+    let test = "a_kidnapped_run_with_mapping_and_loop_threads_merges_its_maps";
+    if !common::model_available(test) {
+        return;
+    }
+    let lap_frames = lap_frames();
+    let sequence = small_sequence(SceneName::Loop, 2 * lap_frames + 10);
+    let gap = lap_frames / 4..lap_frames / 4 + 25;
+    let threaded = run_on(&sequence, true, gap.clone(), true);
+    eprintln!(
+        "threads, kidnapped two laps (gap {gap:?}): ATE over tracked frames {:.4} m ({:.3} % of {:.1} m); merges {:?}; loops {:?}; maps left {}; untracked {}",
+        threaded.ate_tracked_m,
+        100.0 * threaded.ate_tracked_m / threaded.path_m,
+        threaded.path_m,
+        threaded
+            .merges
+            .iter()
+            .map(|m| (m.query_frame, m.match_frame, m.merged_map, m.into_map, m.inliers))
+            .collect::<Vec<_>>(),
+        threaded
+            .loops
+            .iter()
+            .map(|l| (l.query_frame, l.match_frame, l.inliers))
+            .collect::<Vec<_>>(),
+        threaded.live_maps,
+        threaded.lost.len(),
+    );
+    assert!(!threaded.merges.is_empty(), "the maps were not merged");
+    assert_eq!(threaded.live_maps, 1, "the run did not end as one map");
+    assert!(
+        threaded.lost.iter().all(|f| *f < gap.end + 10),
+        "frames lost long after the gap: {:?}",
+        threaded.lost
+    );
+    assert!(
+        threaded.ate_tracked_m <= 0.003 * threaded.path_m,
+        "ATE {} m over {} m",
+        threaded.ate_tracked_m,
+        threaded.path_m
     );
 }

@@ -101,9 +101,23 @@ pub(crate) struct LoopClosingStage {
     detector: LoopDetector,
     merger: MergeDetector,
     queue: VecDeque<KeyFrameId>,
-    loops: Vec<LoopRecord>,
-    merges: Vec<MergeRecord>,
-    rejected: Vec<RejectedLoopRecord>,
+}
+
+/// What the check of one queued keyframe gave.
+#[derive(Debug, Default)]
+pub(crate) struct DetectStep {
+    /// What to correct, if anything.
+    pub(crate) detection: Option<Detection>,
+    /// Candidates rejected after the descriptor stage.
+    pub(crate) rejected: Vec<RejectedLoopRecord>,
+}
+
+/// Every loop, merge and rejected candidate of a run, in order.
+#[derive(Debug, Default)]
+pub(crate) struct LoopLog {
+    pub(crate) loops: Vec<LoopRecord>,
+    pub(crate) merges: Vec<MergeRecord>,
+    pub(crate) rejected: Vec<RejectedLoopRecord>,
 }
 
 /// The input frame of a keyframe (live or not: 0 when unknown).
@@ -121,9 +135,6 @@ impl LoopClosingStage {
             detector: LoopDetector::new(descriptor, thresholds)?,
             merger: MergeDetector::new(thresholds),
             queue: VecDeque::new(),
-            loops: Vec::new(),
-            merges: Vec::new(),
-            rejected: Vec::new(),
         })
     }
 
@@ -133,8 +144,7 @@ impl LoopClosingStage {
     }
 
     /// Starts over on a new map: the database of the map left
-    /// (`finished`) is archived for merging, the queue emptied; the
-    /// records stay.
+    /// (`finished`) is archived for merging, the queue emptied.
     pub(crate) fn new_map(&mut self, finished: usize) -> Result<(), SlamError> {
         self.queue.clear();
         let database = self.detector.take_database()?;
@@ -149,25 +159,10 @@ impl LoopClosingStage {
         self.detector.clear()
     }
 
-    /// Accepted merges so far.
-    pub(crate) fn merges(&self) -> &[MergeRecord] {
-        &self.merges
-    }
-
     /// The detector's keyframe database, shared (relocalisation queries it;
     /// [`Self::new_map`] empties it in place).
     pub(crate) fn shared_database(&self) -> SharedKeyframeDatabase {
         self.detector.shared_database()
-    }
-
-    /// Accepted loops so far.
-    pub(crate) fn loops(&self) -> &[LoopRecord] {
-        &self.loops
-    }
-
-    /// Rejected candidates so far.
-    pub(crate) fn rejected(&self) -> &[RejectedLoopRecord] {
-        &self.rejected
     }
 
     /// Checks the next queued keyframe of `map` for a loop, then, when
@@ -180,14 +175,15 @@ impl LoopClosingStage {
         map: &SharedMap,
         others: &BTreeMap<usize, SharedMap>,
         rig: &StereoRig,
-    ) -> Result<Option<Detection>, SlamError> {
+    ) -> Result<DetectStep, SlamError> {
+        let mut step = DetectStep::default();
         let Some(kf) = self.queue.pop_front() else {
-            return Ok(None);
+            return Ok(step);
         };
         let map = map.read().map_err(|_| SlamError::PoisonedMap)?;
         let outcome = self.detector.process(&map, kf, rig)?;
         for r in outcome.rejected {
-            self.rejected.push(RejectedLoopRecord {
+            step.rejected.push(RejectedLoopRecord {
                 query_frame: frame_of(&map, r.query),
                 candidate_frame: frame_of(&map, r.candidate),
                 score: r.score,
@@ -197,13 +193,14 @@ impl LoopClosingStage {
             });
         }
         if let Some(accepted) = outcome.accepted {
-            return Ok(Some(Detection::Loop(accepted)));
+            step.detection = Some(Detection::Loop(accepted));
+            return Ok(step);
         }
         if !self.merger.has_archived() {
-            return Ok(None);
+            return Ok(step);
         }
         let Some(descriptor) = self.detector.describe(&map, kf)? else {
-            return Ok(None);
+            return Ok(step);
         };
         let mut guards = BTreeMap::new();
         for (index, other) in others {
@@ -212,7 +209,7 @@ impl LoopClosingStage {
         let older: BTreeMap<usize, &Map> = guards.iter().map(|(i, g)| (*i, &**g)).collect();
         let outcome = self.merger.process(&map, kf, &descriptor, &older, rig)?;
         for (tag, r) in outcome.rejected {
-            self.rejected.push(RejectedLoopRecord {
+            step.rejected.push(RejectedLoopRecord {
                 query_frame: frame_of(&map, r.query),
                 candidate_frame: older.get(&tag).map_or(0, |m| frame_of(m, r.candidate)),
                 score: r.score,
@@ -221,7 +218,8 @@ impl LoopClosingStage {
                 other_map: Some(tag),
             });
         }
-        Ok(outcome.accepted.map(Detection::Merge))
+        step.detection = outcome.accepted.map(Detection::Merge);
+        Ok(step)
     }
 
     /// Merges the active map (`active`, atlas index `active_index`) into
@@ -230,6 +228,8 @@ impl LoopClosingStage {
     /// (`Map::absorb`; `active` is left empty), the duplicates are fused
     /// and the essential graph optimised ([`correct_loop`]), and the two
     /// keyframe databases become one. Local mapping must not run meanwhile.
+    /// `Ok(None)` when the matched keyframes were culled since the check
+    /// (the merge waits for the next detection).
     pub(crate) fn merge(
         &mut self,
         active: &SharedMap,
@@ -237,10 +237,13 @@ impl LoopClosingStage {
         target: &SharedMap,
         accepted: &AcceptedMerge,
         rig: &StereoRig,
-    ) -> Result<MergeRecord, SlamError> {
+    ) -> Result<Option<MergeRecord>, SlamError> {
         let mut from = active.write().map_err(|_| SlamError::PoisonedMap)?;
         let mut into = target.write().map_err(|_| SlamError::PoisonedMap)?;
         let common = &accepted.common;
+        if from.keyframe(common.query).is_err() || into.keyframe(common.candidate).is_err() {
+            return Ok(None);
+        }
         let query_frame = frame_of(&from, common.query);
         let match_frame = frame_of(&into, common.candidate);
         into.absorb(
@@ -280,8 +283,7 @@ impl LoopClosingStage {
             transform_m,
             "maps merged"
         );
-        self.merges.push(record);
-        Ok(record)
+        Ok(Some(record))
     }
 
     /// Whether keyframes wait for the check.
@@ -290,14 +292,18 @@ impl LoopClosingStage {
     }
 
     /// Corrects the map with an accepted loop (local mapping must not run
-    /// meanwhile) and records it.
+    /// meanwhile). `Ok(None)` when the two keyframes were culled since the
+    /// check (the loop waits for the next detection).
     pub(crate) fn correct(
         &mut self,
         map: &SharedMap,
         accepted: &AcceptedLoop,
         rig: &StereoRig,
-    ) -> Result<LoopRecord, SlamError> {
+    ) -> Result<Option<LoopRecord>, SlamError> {
         let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
+        if map.keyframe(accepted.query).is_err() || map.keyframe(accepted.candidate).is_err() {
+            return Ok(None);
+        }
         let (query_frame, match_frame) = (
             frame_of(&map, accepted.query),
             frame_of(&map, accepted.candidate),
@@ -320,7 +326,6 @@ impl LoopClosingStage {
             correction_deg = correction.correction_deg,
             "loop closed"
         );
-        self.loops.push(record);
-        Ok(record)
+        Ok(Some(record))
     }
 }

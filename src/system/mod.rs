@@ -16,6 +16,8 @@ mod atlas;
 mod global_ba_thread;
 mod local_mapping_thread;
 mod loop_closing_stage;
+mod loop_closing_thread;
+mod loop_driver;
 mod records;
 mod stereo_slam;
 

@@ -5,19 +5,15 @@
 //! through a channel while the next frame is extracted and tracked.
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 use std::time::Instant;
 
 use crate::camera::StereoRig;
 use crate::error::SlamError;
 use crate::features::GrayImageView;
-use crate::loop_closing::{
-    apply_global_ba, DatabaseRelocaliser, GlobalBaSummary, LoopThresholds, SolvedGlobalBa,
-};
+use crate::loop_closing::{apply_global_ba, GlobalBaSummary, SolvedGlobalBa};
 use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
-use crate::place::GlobalDescriptor;
 use crate::tracking::{
     StereoExtractors, StereoFeatures, StereoFrontend, StereoMatcher, Tracker, TrackingMethod,
     TrackingState,
@@ -26,14 +22,24 @@ use crate::tracking::{
 use super::atlas::{Atlas, MapIndex};
 use super::global_ba_thread::{run_global_ba, GlobalBaThread};
 use super::local_mapping_thread::{MappingResult, MappingThread};
-use super::loop_closing_stage::{
-    Detection, LoopClosingStage, LoopRecord, MergeRecord, RejectedLoopRecord,
-};
+use super::loop_closing_stage::{LoopClosingStage, LoopLog};
+use super::loop_closing_thread::LoopClosingThread;
 use super::records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
+
+/// Where loop detection runs: on the tracking thread between frames
+/// (with inline mapping: deterministic), or on its own thread (with a
+/// mapping thread).
+#[derive(Debug)]
+pub(super) enum LoopClosing {
+    /// Between frames, on the caller's thread.
+    Inline(LoopClosingStage),
+    /// On the loop-closing thread.
+    Thread(LoopClosingThread),
+}
 
 /// Where local mapping runs.
 #[derive(Debug)]
-enum Mapping {
+pub(super) enum Mapping {
     /// On the tracking thread, right after each keyframe.
     Inline(LocalMapper),
     /// On its own thread; keyframe id → index of the record that made it.
@@ -48,18 +54,23 @@ enum Mapping {
 /// Threads: tracking runs on the caller's thread, local mapping inline or
 /// on its own thread. Loop closing ([`Self::enable_loop_closing`]) checks
 /// every keyframe local mapping has processed, as ORB-SLAM3's
-/// `LoopClosing`, on the caller's thread between frames; while it corrects
-/// a loop, local mapping is paused (its queue finished first), as
-/// ORB-SLAM3's `RequestStop`.
+/// `LoopClosing`: on its own thread when local mapping has one, else on
+/// the caller's thread between frames. A loop or merge is corrected on the
+/// caller's thread between frames, with local mapping paused (its queue
+/// finished first), as ORB-SLAM3's `RequestStop`; the global BA that
+/// follows runs on its own thread.
 pub struct StereoSlam {
-    rig: StereoRig,
+    pub(super) rig: StereoRig,
     extractors: Option<StereoExtractors>,
     matcher: StereoMatcher,
-    tracker: Tracker,
-    mapping: Mapping,
-    atlas: Atlas,
-    records: Vec<FrameRecord>,
-    loop_closing: Option<LoopClosingStage>,
+    pub(super) tracker: Tracker,
+    pub(super) mapping: Mapping,
+    pub(super) atlas: Atlas,
+    pub(super) records: Vec<FrameRecord>,
+    pub(super) loop_closing: Option<LoopClosing>,
+    /// Keyframes processed by local mapping, not yet given to loop closing.
+    pub(super) loop_inbox: Vec<KeyFrameId>,
+    pub(super) loop_log: LoopLog,
     global_ba: Option<GlobalBaThread>,
     global_ba_runs: Vec<GlobalBaSummary>,
 }
@@ -77,120 +88,15 @@ impl StereoSlam {
             atlas: Atlas::new(),
             records: Vec::new(),
             loop_closing: None,
+            loop_inbox: Vec::new(),
+            loop_log: LoopLog::default(),
             global_ba: None,
             global_ba_runs: Vec::new(),
         }
     }
 
-    /// Switches loop closing on, with `descriptor` for place recognition
-    /// (a VLAD codebook, see [`crate::place::Codebook`]). Keyframes made
-    /// before this call are not checked.
-    ///
-    /// Relocalisation then asks the same keyframe database for its
-    /// candidates ([`DatabaseRelocaliser`], as ORB-SLAM3's
-    /// `DetectRelocalizationCandidates`) instead of scanning the newest
-    /// keyframes; keyframes made before this call are not in it. The
-    /// tracker keeps the source over a reset or a new map, and the stage
-    /// empties the database in place on either.
-    pub fn enable_loop_closing(
-        &mut self,
-        descriptor: Arc<dyn GlobalDescriptor>,
-        thresholds: LoopThresholds,
-    ) -> Result<(), SlamError> {
-        let stage = LoopClosingStage::new(Arc::clone(&descriptor), thresholds)?;
-        let relocaliser = DatabaseRelocaliser::new(descriptor, stage.shared_database());
-        self.tracker
-            .set_relocalisation_candidates(Some(Arc::new(relocaliser)));
-        self.loop_closing = Some(stage);
-        Ok(())
-    }
-
-    /// The loops accepted and corrected so far.
-    pub fn loops(&self) -> &[LoopRecord] {
-        self.loop_closing.as_ref().map_or(&[], |l| l.loops())
-    }
-
-    /// The merges of the active map into an older one so far.
-    pub fn merges(&self) -> &[MergeRecord] {
-        self.loop_closing.as_ref().map_or(&[], |l| l.merges())
-    }
-
-    /// The loop and merge candidates that passed the descriptor stage and
-    /// were rejected later.
-    pub fn rejected_loops(&self) -> &[RejectedLoopRecord] {
-        self.loop_closing.as_ref().map_or(&[], |l| l.rejected())
-    }
-
-    /// Checks the keyframes local mapping has processed for loops and
-    /// merges, and corrects the map with the accepted ones (local mapping
-    /// paused).
-    fn close_loops(&mut self) -> Result<(), SlamError> {
-        loop {
-            let map = self.atlas.active().map.clone();
-            let others: BTreeMap<MapIndex, SharedMap> = self
-                .atlas
-                .mergeable()
-                .map(|m| (m.index, m.map.clone()))
-                .collect();
-            let Some(stage) = self.loop_closing.as_mut() else {
-                return Ok(());
-            };
-            if !stage.has_queued() {
-                return Ok(());
-            }
-            let Some(detection) = stage.detect_next(&map, &others, &self.rig)? else {
-                continue;
-            };
-            // A running global BA works on poses the correction replaces.
-            self.abort_global_ba();
-            let paused = self.pause_mapping()?;
-            let corrected = match detection {
-                Detection::Loop(accepted) => {
-                    if let Some(stage) = self.loop_closing.as_mut() {
-                        stage.correct(&map, &accepted, &self.rig)?;
-                    }
-                    map
-                }
-                Detection::Merge(accepted) => {
-                    let target = others.get(&accepted.target).cloned().ok_or(
-                        SlamError::UnknownAtlasMap {
-                            map: accepted.target,
-                        },
-                    )?;
-                    let active = self.atlas.active().index;
-                    if let Some(stage) = self.loop_closing.as_mut() {
-                        stage.merge(&map, active, &target, &accepted, &self.rig)?;
-                    }
-                    self.follow_merge(accepted.target);
-                    target
-                }
-            };
-            self.resume_mapping(paused, &corrected)?;
-            self.start_global_ba(&corrected)?;
-        }
-    }
-
-    /// After the active map was absorbed into map `into`: `into` becomes
-    /// active and the records of the absorbed map's frames name it (their
-    /// keyframe ids are unchanged, see [`Atlas`]).
-    fn follow_merge(&mut self, into: MapIndex) {
-        let Some(merged) = self.atlas.merge_active_into(into) else {
-            return;
-        };
-        for record in &mut self.records {
-            if record.map == merged {
-                record.map = into;
-            }
-            if let Some(rel) = record.relative_pose.as_mut() {
-                if rel.map == merged {
-                    rel.map = into;
-                }
-            }
-        }
-    }
-
     /// Restarts the local-mapping thread paused by [`Self::pause_mapping`].
-    fn resume_mapping(
+    pub(super) fn resume_mapping(
         &mut self,
         paused: Option<LocalMapper>,
         map: &SharedMap,
@@ -209,7 +115,7 @@ impl StereoSlam {
     }
 
     /// Aborts a running global BA (a new loop, a new map, a reset).
-    fn abort_global_ba(&mut self) {
+    pub(super) fn abort_global_ba(&mut self) {
         if let Some(running) = self.global_ba.take() {
             running.abort();
             self.global_ba_runs.push(GlobalBaSummary {
@@ -221,7 +127,7 @@ impl StereoSlam {
 
     /// Starts the global BA after a correction: on its own thread when
     /// local mapping has one, else right here (deterministic runs).
-    fn start_global_ba(&mut self, map: &SharedMap) -> Result<(), SlamError> {
+    pub(super) fn start_global_ba(&mut self, map: &SharedMap) -> Result<(), SlamError> {
         if matches!(self.mapping, Mapping::Thread { .. }) {
             self.global_ba = Some(GlobalBaThread::spawn(map.clone(), self.rig)?);
             return Ok(());
@@ -274,7 +180,7 @@ impl StereoSlam {
 
     /// Stops the local-mapping thread after its queue (its results are
     /// filed) and returns its mapper; `None` when mapping runs inline.
-    fn pause_mapping(&mut self) -> Result<Option<LocalMapper>, SlamError> {
+    pub(super) fn pause_mapping(&mut self) -> Result<Option<LocalMapper>, SlamError> {
         let Mapping::Thread { .. } = self.mapping else {
             return Ok(None);
         };
@@ -324,7 +230,7 @@ impl StereoSlam {
             thread,
             waiting: BTreeMap::new(),
         };
-        Ok(())
+        self.spawn_loop_closing_thread()
     }
 
     /// Extracts a stereo pair's features (left and right in parallel)
@@ -361,7 +267,8 @@ impl StereoSlam {
         self.atlas = Atlas::new();
         self.tracker = self.tracker.fresh();
         self.records.clear();
-        if let Some(stage) = self.loop_closing.as_mut() {
+        self.loop_log = LoopLog::default();
+        if let Some(stage) = self.inline_loop_stage() {
             stage.reset()?;
         }
         if threaded {
@@ -370,11 +277,14 @@ impl StereoSlam {
         Ok(())
     }
 
-    /// Waits for local mapping to finish every queued keyframe and brings
-    /// it back inline. Call before reading the final trajectory.
+    /// Waits for local mapping to finish every queued keyframe and for
+    /// loop closing to check them, brings both back inline, and applies
+    /// the last global BA. Call before reading the final trajectory.
     pub fn finish(&mut self) -> Result<(), SlamError> {
         let Mapping::Thread { .. } = self.mapping else {
-            return Ok(());
+            self.stop_loop_closing_thread()?;
+            self.close_loops()?;
+            return self.poll_global_ba(true);
         };
         let placeholder = Mapping::Inline(LocalMapper::new(self.rig));
         let Mapping::Thread {
@@ -387,6 +297,7 @@ impl StereoSlam {
         let (mapper, results) = thread.finish()?;
         self.mapping = Mapping::Inline(mapper);
         self.attach(results, &mut waiting)?;
+        self.stop_loop_closing_thread()?;
         self.close_loops()?;
         self.poll_global_ba(true)
     }
@@ -399,9 +310,7 @@ impl StereoSlam {
     ) -> Result<(), SlamError> {
         for result in results {
             let summary = result.summary?;
-            if let Some(stage) = self.loop_closing.as_mut() {
-                stage.push(result.keyframe);
-            }
+            self.loop_inbox.push(result.keyframe);
             if let Some(record) = waiting
                 .remove(&result.keyframe)
                 .and_then(|i| self.records.get_mut(i))
@@ -439,7 +348,7 @@ impl StereoSlam {
         }
         let finished = self.atlas.active().index;
         let new_map = self.atlas.start_new_map(index);
-        if let Some(stage) = self.loop_closing.as_mut() {
+        if let Some(stage) = self.inline_loop_stage() {
             stage.new_map(finished)?;
         }
         tracing::info!(
@@ -546,9 +455,7 @@ impl StereoSlam {
             match &mut self.mapping {
                 Mapping::Inline(mapper) => {
                     mapping = Some(mapper.process_keyframe(&map, *kf, created, &|| false)?);
-                    if let Some(stage) = self.loop_closing.as_mut() {
-                        stage.push(*kf);
-                    }
+                    self.loop_inbox.push(*kf);
                 }
                 Mapping::Thread { thread, waiting } => {
                     thread.submit(*kf, created.clone())?;
