@@ -41,7 +41,7 @@ impl StereoSlam {
         self.tracker
             .set_relocalisation_candidates(Some(Arc::new(relocaliser)));
         self.loop_inbox.clear();
-        self.loop_closing = Some(LoopClosing::Inline(stage));
+        self.loop_closing = Some(LoopClosing::Inline(Box::new(stage)));
         if matches!(self.mapping, Mapping::Thread { .. }) {
             self.spawn_loop_closing_thread()?;
         }
@@ -96,7 +96,7 @@ impl StereoSlam {
         for kf in self.loop_inbox.drain(..) {
             stage.push(kf);
         }
-        let thread = LoopClosingThread::spawn(stage, self.rig, view)?;
+        let thread = LoopClosingThread::spawn(*stage, self.rig, view)?;
         self.loop_closing = Some(LoopClosing::Thread(thread));
         Ok(())
     }
@@ -114,7 +114,7 @@ impl StereoSlam {
         let applied = findings
             .into_iter()
             .try_for_each(|f| self.apply_finding(&mut stage, f));
-        self.loop_closing = Some(LoopClosing::Inline(stage));
+        self.loop_closing = Some(LoopClosing::Inline(Box::new(stage)));
         applied
     }
 

@@ -32,7 +32,7 @@ use super::records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSu
 #[derive(Debug)]
 pub(super) enum LoopClosing {
     /// Between frames, on the caller's thread.
-    Inline(LoopClosingStage),
+    Inline(Box<LoopClosingStage>),
     /// On the loop-closing thread.
     Thread(LoopClosingThread),
 }
