@@ -108,6 +108,9 @@ pub enum SlamError {
         #[source]
         source: crate::place::PlaceError,
     },
+    /// Saving or loading a map file failed.
+    #[error(transparent)]
+    Storage(#[from] crate::storage::StorageError),
     /// The extractors were handed to a pipeline thread
     /// ([`StereoSlam::detach_extractors`](crate::system::StereoSlam::detach_extractors)),
     /// so this system only tracks features extracted elsewhere.

@@ -24,6 +24,7 @@ pub mod matching;
 pub mod optim;
 pub mod place;
 pub mod settings;
+pub mod storage;
 pub mod system;
 pub mod tracking;
 

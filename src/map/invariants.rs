@@ -10,6 +10,57 @@ use super::{observation_weight, Map};
 /// The first inconsistency [`Map::check_invariants`] found.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum InvariantViolation {
+    /// Stored parts whose id base lies above the id counters.
+    #[error("the id base {base} lies above the next ids ({next_keyframe}, {next_point})")]
+    IdBaseAboveCounters {
+        /// The first id the map issues.
+        base: u64,
+        /// The next keyframe id.
+        next_keyframe: u64,
+        /// The next point id.
+        next_point: u64,
+    },
+    /// Stored parts holding a keyframe twice.
+    #[error("{keyframe} is stored twice")]
+    DuplicateKeyFrame {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// Stored parts holding a point twice.
+    #[error("{point} is stored twice")]
+    DuplicateMapPoint {
+        /// The point.
+        point: MapPointId,
+    },
+    /// Issued keyframe ids that are neither live nor culled, or the other
+    /// way round (checked before walking the id ranges).
+    #[error("the id ranges issue {issued} keyframe ids, but {known} keyframes are live or culled")]
+    IssuedCountMismatch {
+        /// Ids the ranges cover.
+        issued: u64,
+        /// Live and culled keyframes.
+        known: u64,
+    },
+    /// A keyframe whose per-level tables disagree in length.
+    #[error("{keyframe} has per-level tables of different lengths")]
+    ScaleTablesMismatch {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+    },
+    /// A keypoint on a pyramid level the keyframe's tables do not have.
+    #[error(
+        "{keyframe} keypoint {index} is on level {octave}, but the keyframe has {levels} levels"
+    )]
+    OctaveOutOfRange {
+        /// The keyframe.
+        keyframe: KeyFrameId,
+        /// The keypoint.
+        index: usize,
+        /// Its level.
+        octave: i32,
+        /// Levels in the tables.
+        levels: usize,
+    },
     /// A keyframe is stored under another id than its own.
     #[error("the keyframe stored under {key} says it is {stored}")]
     KeyFrameIdMismatch {
@@ -363,14 +414,53 @@ impl Map {
     /// - that a point's normal or distances are finite (the normal of a point
     ///   seen from exactly opposite directions is undefined).
     pub fn check_invariants(&self) -> Result<(), InvariantViolation> {
+        self.check_issued_ids()?;
         self.check_keyframes()?;
         self.check_points()?;
         self.check_covisibility()?;
         self.check_history()
     }
 
+    /// The issued keyframe ids number exactly the live and culled ones
+    /// (so walking the ranges is bounded by the map's size).
+    fn check_issued_ids(&self) -> Result<(), InvariantViolation> {
+        let issued = self
+            .issued_keyframe_ranges()
+            .iter()
+            .map(|r| r.end.saturating_sub(r.start))
+            .fold(0u64, u64::saturating_add);
+        let known = (self.keyframes.len() + self.culled.len()) as u64;
+        if issued != known {
+            return Err(InvariantViolation::IssuedCountMismatch { issued, known });
+        }
+        Ok(())
+    }
+
     fn check_keyframes(&self) -> Result<(), InvariantViolation> {
         for (&key, kf) in &self.keyframes {
+            let scales = &kf.measurements.scales;
+            let levels = scales.scale_factors.len();
+            if [
+                scales.inv_scale_factors.len(),
+                scales.level_sigma2.len(),
+                scales.inv_level_sigma2.len(),
+                scales.features_per_level.len(),
+            ]
+            .iter()
+            .any(|n| *n != levels)
+            {
+                return Err(InvariantViolation::ScaleTablesMismatch { keyframe: key });
+            }
+            for (index, kp) in kf.measurements.keypoints.iter().enumerate() {
+                if kp.octave >= 0 && kp.octave as usize >= levels {
+                    return Err(InvariantViolation::OctaveOutOfRange {
+                        keyframe: key,
+                        index,
+                        octave: kp.octave,
+                        levels,
+                    });
+                }
+            }
             if kf.id() != key {
                 return Err(InvariantViolation::KeyFrameIdMismatch {
                     key,

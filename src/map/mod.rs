@@ -42,6 +42,7 @@ mod ids;
 mod invariants;
 mod keyframe;
 mod map_point;
+mod parts;
 #[cfg(test)]
 mod tests_support;
 
@@ -59,6 +60,9 @@ pub use ids::{KeyFrameId, MapPointId};
 pub use invariants::InvariantViolation;
 pub use keyframe::{FrameMeasurements, KeyFrame, StereoMeasurement};
 pub use map_point::MapPoint;
+pub use parts::{
+    CulledParts, GraphParts, KeyFrameParts, MapParts, MapPointParts, PoseParts, ScaleParts,
+};
 
 use crate::optim::{LieGroup, Se3};
 use covisibility::CovisibilityNode;
@@ -69,7 +73,7 @@ pub type SharedMap = Arc<RwLock<Map>>;
 /// Where a culled keyframe was, relative to its spanning-tree parent, so the
 /// poses of frames tracked against it can still be recovered.
 #[derive(Debug, Clone, Copy)]
-struct CulledKeyFrame {
+pub(crate) struct CulledKeyFrame {
     parent: KeyFrameId,
     /// `T_c,parent`: the culled keyframe's pose relative to its parent.
     relative_pose: Se3,

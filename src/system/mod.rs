@@ -18,11 +18,13 @@ mod local_mapping_thread;
 mod loop_closing_stage;
 mod loop_closing_thread;
 mod loop_driver;
+mod map_files;
 mod records;
 mod stereo_slam;
 
 pub use atlas::{Atlas, AtlasMap, MapIndex};
 pub use local_mapping_thread::{MappingResult, MappingThread};
 pub use loop_closing_stage::{LoopRecord, MergeRecord, RejectedLoopRecord};
+pub use map_files::MapProvenance;
 pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 pub use stereo_slam::StereoSlam;

@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+pub mod map_files;
 pub mod pose_graph_problems;
 pub mod rng;
 pub mod synthetic_ba;
