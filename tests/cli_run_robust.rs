@@ -228,9 +228,42 @@ fn strict_stops_at_the_corrupt_frame_and_writes_the_frames_before() {
     let (_shared, data) = copy_frames(FRAMES, "strict");
     corrupt_frame_15(data.path());
     let out = TempDir::new("strict-out");
-    let output = run(data.path(), out.path(), &["--strict"]);
+    let map = out.path().join("early.spmap");
+    let map_arg = map.display().to_string();
+    let output = run(
+        data.path(),
+        out.path(),
+        &["--strict", "--save-map", &map_arg],
+    );
     let logs = logs(&output);
     assert_eq!(output.status.code(), Some(2), "{logs}");
+    // The run ended early, and its map was saved all the same.
+    let info = spslam()
+        .args(["map", "info"])
+        .arg(&map)
+        .output()
+        .expect("run spslam map info");
+    let info_text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.status.success(),
+        "{info_text}{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    assert!(
+        info_text.contains("format version 1") && info_text.contains("extractor orb"),
+        "{info_text}"
+    );
+    let loaded = spslam::storage::load(&map).unwrap_or_else(|e| panic!("{e}"));
+    let keyframes: usize = loaded.maps.iter().map(|m| m.map.keyframe_count()).sum();
+    assert!(keyframes > 0, "{info_text}");
+    assert!(
+        loaded
+            .maps
+            .iter()
+            .flat_map(|m| m.map.keyframes())
+            .all(|k| k.frame_index < 15),
+        "keyframes from frames after the stop"
+    );
     assert_eq!(trajectory_rows(out.path()), 15, "{logs}");
     assert!(out.path().join("keyframes_tum.txt").is_file());
     let r = report(out.path());

@@ -3,6 +3,7 @@
 mod eval;
 mod extract;
 mod loops;
+mod map;
 mod run;
 mod synth;
 mod vocab;
@@ -35,6 +36,8 @@ enum Command {
     Vocab(vocab::VocabArgs),
     /// Find revisited places in a folder of images (VLAD + fundamental-matrix RANSAC).
     Loops(loops::LoopsArgs),
+    /// Map files: `spslam map info FILE` tells what one holds.
+    Map(map::MapArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -68,6 +71,7 @@ fn main() -> std::process::ExitCode {
         Command::Run(args) => run::run_slam(args),
         Command::Vocab(args) => vocab::run_vocab(args).map(success),
         Command::Loops(args) => loops::run_loops(args).map(success),
+        Command::Map(args) => map::run_map(args).map(success),
     };
     match result {
         Ok(code) => code,

@@ -31,7 +31,8 @@ use spslam::features::{
 use spslam::loop_closing::LoopThresholds;
 use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::SlamSettings;
-use spslam::system::StereoSlam;
+use spslam::storage::{crc32, DescriptorPrecision, SaveOptions};
+use spslam::system::{MapProvenance, StereoSlam};
 use spslam::tracking::StereoFrontend;
 
 use frame_loop::{FrameLoop, RunEnd};
@@ -113,6 +114,13 @@ pub struct RunArgs {
     /// (the frames before it are still written; exit code 2).
     #[arg(long)]
     strict: bool,
+    /// Save the atlas to this map file at the end of the run, also when it
+    /// ends early (interrupted or failed); see `spslam map info`.
+    #[arg(long)]
+    save_map: Option<PathBuf>,
+    /// How the map file stores float descriptors: f32 (exact), f16 or u8.
+    #[arg(long, default_value = "f16")]
+    map_precision: DescriptorPrecision,
 }
 
 /// `--extractor`.
@@ -157,6 +165,12 @@ fn extractors(
     }
 }
 
+/// A file's identity for a map file's provenance: its CRC-32 and length.
+fn file_fingerprint(path: &std::path::Path) -> Option<String> {
+    let bytes = std::fs::read(path).ok()?;
+    Some(format!("crc32:{:08x}/{}B", crc32(&bytes), bytes.len()))
+}
+
 /// Runs SLAM over the sequence and writes its outputs. `Err`: the run
 /// could not start (exit code 1); otherwise the exit code is 0 for a
 /// complete run, 2 for an incomplete one (its outputs written).
@@ -198,6 +212,14 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         mapper.bundle_adjustment = !args.no_local_ba;
         mapper.keyframe_culling = !args.no_keyframe_culling;
     }
+    let model_fingerprint = match args.extractor {
+        ExtractorChoice::Superpoint => {
+            let config = settings.extractor.superpoint_config(levels, 1);
+            file_fingerprint(&config.resolved_model_path())
+        }
+        ExtractorChoice::Orb => None,
+    };
+    let mut codebook_fingerprint = None;
     if !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         let config = settings.extractor.superpoint_config(levels, cores / 2);
@@ -212,6 +234,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
             )
         })?;
         slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default())?;
+        codebook_fingerprint = file_fingerprint(&path);
     }
     if !args.inline_mapping {
         slam.spawn_mapping_thread()?;
@@ -254,6 +277,30 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         bar.abandon();
     }
 
+    let mut map_problem = None;
+    if let Some(path) = &args.save_map {
+        let provenance = MapProvenance {
+            extractor_settings: format!("{:?}", settings.extractor),
+            model_hash: model_fingerprint,
+            codebook_hash: codebook_fingerprint,
+        };
+        match slam.save_map(
+            path,
+            &provenance,
+            args.map_precision,
+            SaveOptions::default(),
+        ) {
+            Ok(saved) => eprintln!(
+                "map saved to {}: {} keyframes, {} map points, {:.1} MB ({})",
+                path.display(),
+                saved.keyframes,
+                saved.points,
+                saved.bytes as f64 / 1e6,
+                args.map_precision.name()
+            ),
+            Err(e) => map_problem = Some(format!("cannot save the map to {}: {e}", path.display())),
+        }
+    }
     let outputs = RunOutputs {
         out: &args.out,
         dataset: &args.dataset,
@@ -263,7 +310,10 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         inference: &inference,
         wall_seconds: started.elapsed().as_secs_f64(),
     };
-    let problems = outputs.write(&slam, &end, &unreadable);
+    let mut problems = outputs.write(&slam, &end, &unreadable);
+    if let Some(problem) = map_problem {
+        problems.push(anyhow::anyhow!(problem));
+    }
     for problem in &problems {
         eprintln!("error: {problem:#}");
     }
