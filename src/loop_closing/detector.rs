@@ -190,6 +190,20 @@ impl LoopDetector {
         self.pending = None;
     }
 
+    /// A database of every keyframe of `map` (a loaded map), in id order.
+    pub fn database_of(&self, map: &Map) -> Result<KeyframeDatabase<KeyFrameId>, SlamError> {
+        let mut database =
+            KeyframeDatabase::new(self.descriptor.dim()).in_stage("keyframe database")?;
+        for kf in map.keyframes() {
+            if let Some(d) = self.describe(map, kf.id())? {
+                database
+                    .insert(kf.id(), &d)
+                    .in_stage("keyframe database insert")?;
+            }
+        }
+        Ok(database)
+    }
+
     /// The global descriptor of a keyframe; `None` without float rows
     /// (binary descriptors: no VLAD codebook applies).
     pub fn describe(&self, map: &Map, kf: KeyFrameId) -> Result<Option<Vec<f32>>, SlamError> {

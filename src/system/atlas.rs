@@ -29,6 +29,9 @@ pub struct AtlasMap {
     pub first_frame: usize,
     /// The map it was merged into, if it was.
     pub merged_into: Option<MapIndex>,
+    /// Whether it came from a map file: its frame is the trajectory's
+    /// world frame (no anchoring at the first tracked frame).
+    pub loaded: bool,
 }
 
 /// Ids of map `index` start at `index · 2⁴⁰`.
@@ -58,8 +61,36 @@ impl Atlas {
                 map: Map::with_id_base(id_base(0)).into_shared(),
                 first_frame: 0,
                 merged_into: None,
+                loaded: false,
             }],
             active: 0,
+        }
+    }
+
+    /// An atlas of loaded maps (`(index, first frame, merged into, map)`,
+    /// indices 0.. in order), `active` active. `None` when the indices are
+    /// not 0.. in order, `active` is not one of them, or it was merged.
+    pub fn from_loaded(
+        maps: Vec<(MapIndex, usize, Option<MapIndex>, Map)>,
+        active: MapIndex,
+    ) -> Option<Self> {
+        let n = maps.len();
+        let mut out = Vec::with_capacity(n);
+        for (i, (index, first_frame, merged_into, map)) in maps.into_iter().enumerate() {
+            if index != i || merged_into.is_some_and(|m| m >= n || m == i) {
+                return None;
+            }
+            out.push(AtlasMap {
+                index,
+                map: map.into_shared(),
+                first_frame,
+                merged_into,
+                loaded: true,
+            });
+        }
+        match out.get(active) {
+            Some(m) if m.merged_into.is_none() => Some(Self { maps: out, active }),
+            _ => None,
         }
     }
 
@@ -100,6 +131,7 @@ impl Atlas {
             map: Map::with_id_base(id_base(index)).into_shared(),
             first_frame,
             merged_into: None,
+            loaded: false,
         });
         self.active = index;
         index

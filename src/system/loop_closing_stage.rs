@@ -152,6 +152,26 @@ impl LoopClosingStage {
         Ok(())
     }
 
+    /// Indexes the maps of a loaded atlas (atlas index, map): the active
+    /// one's keyframes fill the database (relocalisation and loops), the
+    /// others' are archived for merging.
+    pub(crate) fn index_loaded(
+        &mut self,
+        maps: &[(usize, &Map)],
+        active: usize,
+    ) -> Result<(), SlamError> {
+        self.reset()?;
+        for (index, map) in maps {
+            let database = self.detector.database_of(map)?;
+            if *index == active {
+                self.detector.replace_database(database);
+            } else {
+                self.merger.archive(*index, database);
+            }
+        }
+        Ok(())
+    }
+
     /// Starts over with an empty atlas: every database emptied.
     pub(crate) fn reset(&mut self) -> Result<(), SlamError> {
         self.queue.clear();

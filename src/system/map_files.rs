@@ -4,12 +4,25 @@
 
 use std::path::Path;
 
+use crate::camera::StereoRig;
 use crate::error::SlamError;
 use crate::storage::{
-    save, DescriptorPrecision, MapFileMeta, MapToSave, SaveOptions, SaveReport, StoredRig,
+    save, DescriptorPrecision, LoadedAtlas, MapFileMeta, MapToSave, SaveOptions, SaveReport,
+    StorageError, StoredRig,
 };
 
+use super::atlas::Atlas;
+use super::stereo_slam::{LoopClosing, Mapping};
 use super::StereoSlam;
+
+/// What a run does with a loaded map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LoadedMapUse {
+    /// Track and keep mapping on it (keyframes, points, loops, merges).
+    ContinueMapping,
+    /// Localise only: no keyframe, point or map is added, nothing moves.
+    LocaliseOnly,
+}
 
 /// What the caller knows of how the map was made, written into the file.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -22,7 +35,118 @@ pub struct MapProvenance {
     pub codebook_hash: Option<String>,
 }
 
+/// Refuses a file made with another model, codebook or extractor.
+fn check_provenance(
+    path: &Path,
+    meta: &MapFileMeta,
+    extractor: &str,
+    current: &MapProvenance,
+) -> Result<(), StorageError> {
+    let mismatch = |what: &'static str, file: &str, now: &str| StorageError::BuiltWithAnother {
+        path: path.to_path_buf(),
+        what,
+        file_hash: file.to_string(),
+        current_hash: now.to_string(),
+    };
+    if meta.extractor != extractor {
+        return Err(mismatch("extractor", &meta.extractor, extractor));
+    }
+    for (what, file, now) in [
+        ("model", &meta.model_hash, &current.model_hash),
+        ("codebook", &meta.codebook_hash, &current.codebook_hash),
+    ] {
+        if let (Some(file), Some(now)) = (file, now) {
+            if file != now {
+                return Err(mismatch(what, file, now));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether two rigs are the same camera (intrinsics, baseline, size).
+fn same_camera(a: &StereoRig, b: &StereoRig) -> bool {
+    let close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * x.abs().max(y.abs()).max(1.0);
+    close(a.camera.fx, b.camera.fx)
+        && close(a.camera.fy, b.camera.fy)
+        && close(a.camera.cx, b.camera.cx)
+        && close(a.camera.cy, b.camera.cy)
+        && close(a.baseline, b.baseline)
+        && a.width == b.width
+        && a.height == b.height
+}
+
 impl StereoSlam {
+    /// Starts over on a loaded atlas (`path` names the file in errors):
+    /// its maps replace this system's, the active one is activated (the
+    /// next frame relocalises against it, through the keyframe database
+    /// when loop closing is on, rebuilt here from the keyframes), and the
+    /// frame records start empty. Refused, with nothing changed, when the
+    /// file was made with another extractor, model or codebook than
+    /// `current` names, or with another camera.
+    ///
+    /// With [`LoadedMapUse::LocaliseOnly`] tracking never inserts a
+    /// keyframe nor starts a new map, so local mapping and loop closing
+    /// have nothing to do and the maps are never changed (the points'
+    /// visibility statistics excepted).
+    pub fn load_map(
+        &mut self,
+        path: &Path,
+        loaded: LoadedAtlas,
+        current: &MapProvenance,
+        use_: LoadedMapUse,
+    ) -> Result<(), SlamError> {
+        check_provenance(path, &loaded.meta, self.extractor_name(), current)?;
+        let rig = StereoRig::from(&loaded.meta.rig);
+        if !same_camera(&rig, &self.rig) {
+            return Err(StorageError::BuiltWithAnother {
+                path: path.to_path_buf(),
+                what: "camera",
+                file_hash: format!("{:?}", loaded.meta.rig),
+                current_hash: format!("{:?}", StoredRig::from(&self.rig)),
+            }
+            .into());
+        }
+        let maps: Vec<_> = loaded
+            .maps
+            .into_iter()
+            .map(|m| (m.index, m.first_frame, m.merged_into, m.map))
+            .collect();
+        let atlas = Atlas::from_loaded(maps, loaded.meta.active_map).ok_or_else(|| {
+            StorageError::Corrupt {
+                path: path.to_path_buf(),
+                reason: "the atlas's map indices or active map do not fit".into(),
+            }
+        })?;
+        let threaded = matches!(self.mapping, Mapping::Thread { .. });
+        self.finish()?;
+        if let Mapping::Inline(mapper) = &mut self.mapping {
+            *mapper = mapper.fresh();
+        }
+        self.atlas = atlas;
+        self.records.clear();
+        self.loop_log = Default::default();
+        self.loop_inbox.clear();
+        if let Some(LoopClosing::Inline(stage)) = self.loop_closing.as_mut() {
+            let guards = self
+                .atlas
+                .maps()
+                .iter()
+                .map(|m| m.map.read().map(|g| (m.index, g)))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|_| SlamError::PoisonedMap)?;
+            let maps: Vec<_> = guards.iter().map(|(i, g)| (*i, &**g)).collect();
+            stage.index_loaded(&maps, self.atlas.active().index)?;
+        }
+        self.tracker
+            .set_localisation_only(use_ == LoadedMapUse::LocaliseOnly);
+        self.tracker.start_lost();
+        if threaded {
+            self.spawn_mapping_thread()?;
+        }
+        Ok(())
+    }
+
     /// Saves every atlas map to `path` (atomically: the previous file stays
     /// whole until the new one is complete), descriptors in `precision`.
     /// Call [`Self::finish`] first for the final map; a save mid-run

@@ -25,6 +25,6 @@ mod stereo_slam;
 pub use atlas::{Atlas, AtlasMap, MapIndex};
 pub use local_mapping_thread::{MappingResult, MappingThread};
 pub use loop_closing_stage::{LoopRecord, MergeRecord, RejectedLoopRecord};
-pub use map_files::MapProvenance;
+pub use map_files::{LoadedMapUse, MapProvenance};
 pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 pub use stereo_slam::StereoSlam;

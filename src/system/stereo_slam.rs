@@ -534,7 +534,12 @@ impl StereoSlam {
                 if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
                     // T_map,c
                     let in_map = rel.pose.compose(&kf_pose).inverse();
+                    let loaded = entry.loaded;
                     let anchor = *anchors.entry(rel.map).or_insert_with(|| {
+                        if loaded {
+                            // A loaded map's frame is the world frame.
+                            return Se3::identity();
+                        }
                         if rel.map > 0 {
                             anchored = Some((rel.map, previous_frame.unwrap_or(record.index)));
                         }

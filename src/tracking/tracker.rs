@@ -72,6 +72,8 @@ pub struct Tracker {
     max_frames: usize,
     /// Where relocalisation's keyframes come from; `None`: the newest ones.
     relocalisation_candidates: Option<Arc<dyn RelocalisationCandidates>>,
+    /// Localisation only: no keyframe is inserted, no new map started.
+    localisation_only: bool,
 }
 
 /// Seconds of failed relocalisation after which tracking gives the map up
@@ -103,7 +105,27 @@ impl Tracker {
             lost_since: None,
             max_frames: rig.fps.round().max(1.0) as usize,
             relocalisation_candidates: None,
+            localisation_only: false,
         }
+    }
+
+    /// Localisation only (ORB-SLAM3's localization mode): tracking never
+    /// inserts a keyframe or starts a new map; the map is only read.
+    pub fn set_localisation_only(&mut self, on: bool) {
+        self.localisation_only = on;
+    }
+
+    /// Whether tracking only localises (see [`Self::set_localisation_only`]).
+    pub fn localisation_only(&self) -> bool {
+        self.localisation_only
+    }
+
+    /// Starts lost in a map that already holds keyframes (a loaded map):
+    /// the next frame relocalises against it instead of initialising.
+    pub fn start_lost(&mut self) {
+        let keep = self.fresh();
+        *self = keep;
+        self.state = TrackingState::Lost;
     }
 
     /// A new, uninitialised tracker for the same rig that keeps this one's
@@ -111,6 +133,7 @@ impl Tracker {
     pub fn fresh(&self) -> Self {
         let mut tracker = Self::new(self.rig);
         tracker.relocalisation_candidates = self.relocalisation_candidates.clone();
+        tracker.localisation_only = self.localisation_only;
         tracker
     }
 
@@ -166,7 +189,7 @@ impl Tracker {
         let Some(mut frame) = frame else {
             return Ok(outcome);
         };
-        if wants_keyframe {
+        if wants_keyframe && !self.localisation_only {
             let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
             let (kf, created) = insert_keyframe(&mut frame, &mut map, &self.rig)?;
             self.reference = Some(kf);
@@ -307,7 +330,8 @@ impl Tracker {
     /// Whether relocalisation has failed long enough that tracking should
     /// start a new map (see [`RELOCALISATION_PATIENCE_S`]) at frame `index`.
     pub fn should_start_new_map(&self, index: usize) -> bool {
-        self.state == TrackingState::Lost
+        !self.localisation_only
+            && self.state == TrackingState::Lost
             && self
                 .lost_since
                 .is_some_and(|since| index >= since + self.relocalisation_patience())

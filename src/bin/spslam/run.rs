@@ -32,7 +32,7 @@ use spslam::loop_closing::LoopThresholds;
 use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::SlamSettings;
 use spslam::storage::{crc32, DescriptorPrecision, SaveOptions};
-use spslam::system::{MapProvenance, StereoSlam};
+use spslam::system::{LoadedMapUse, MapProvenance, StereoSlam};
 use spslam::tracking::StereoFrontend;
 
 use frame_loop::{FrameLoop, RunEnd};
@@ -121,6 +121,16 @@ pub struct RunArgs {
     /// How the map file stores float descriptors: f32 (exact), f16 or u8.
     #[arg(long, default_value = "f16")]
     map_precision: DescriptorPrecision,
+    /// Start on the atlas of this map file (saved by `--save-map` with the
+    /// same extractor, model, codebook and camera): the first frame
+    /// relocalises in it, and mapping continues on it.
+    #[arg(long)]
+    load_map: Option<PathBuf>,
+    /// With --load-map: localise only; no keyframe, point or map is added
+    /// and the loaded map is not changed. The report counts the frames
+    /// localised, relocalised and lost.
+    #[arg(long, requires = "load_map")]
+    localize: bool,
 }
 
 /// `--extractor`.
@@ -239,6 +249,39 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     if !args.inline_mapping {
         slam.spawn_mapping_thread()?;
     }
+    let provenance = MapProvenance {
+        extractor_settings: format!("{:?}", settings.extractor),
+        model_hash: model_fingerprint,
+        codebook_hash: codebook_fingerprint,
+    };
+    if let Some(path) = &args.load_map {
+        let loaded = spslam::storage::load(path)?;
+        let use_ = if args.localize {
+            LoadedMapUse::LocaliseOnly
+        } else {
+            LoadedMapUse::ContinueMapping
+        };
+        slam.load_map(path, loaded, &provenance, use_)?;
+        eprintln!(
+            "map loaded from {}: {} keyframes, {} map points{}",
+            path.display(),
+            slam.atlas()
+                .maps()
+                .iter()
+                .filter_map(|m| m.map.read().ok().map(|g| g.keyframe_count()))
+                .sum::<usize>(),
+            slam.atlas()
+                .maps()
+                .iter()
+                .filter_map(|m| m.map.read().ok().map(|g| g.map_point_count()))
+                .sum::<usize>(),
+            if args.localize {
+                "; localisation only"
+            } else {
+                ""
+            }
+        );
+    }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let stop = StopRequest::install()?;
@@ -279,11 +322,6 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
 
     let mut map_problem = None;
     if let Some(path) = &args.save_map {
-        let provenance = MapProvenance {
-            extractor_settings: format!("{:?}", settings.extractor),
-            model_hash: model_fingerprint,
-            codebook_hash: codebook_fingerprint,
-        };
         match slam.save_map(
             path,
             &provenance,
