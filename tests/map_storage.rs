@@ -8,6 +8,9 @@
 //! - an interrupted save leaves the previous file loadable;
 //! - a file of another format version, a truncated file and a file with
 //!   a flipped bit are typed errors naming the fault;
+//! - a map loaded to continue mapping grows, stays consistent, and saves
+//!   and loads again; a file made with another model or extractor is
+//!   refused, naming both;
 //! - file size per keyframe for f32, f16 and u8 (printed, `--nocapture`).
 
 mod common;
@@ -248,5 +251,102 @@ fn superpoint_map_round_trips_in_every_precision() {
         );
         assert!(worst <= bound, "{precision:?}: {worst}");
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_loaded_map_keeps_growing_and_a_foreign_one_is_refused() {
+    let sequence =
+        common::synthetic_slam::small_sequence(spslam::dataset::synthetic::SceneName::Loop, 40);
+    let mut first = common::synthetic_slam::orb_slam(&sequence);
+    for i in 0..30 {
+        let (t, l, r) = common::synthetic_slam::images(&sequence, i);
+        ok(first.process(i, t, l.view(), r.view()));
+    }
+    ok(first.finish());
+    let dir = scratch("continue");
+    let path = dir.join("first.spmap");
+    ok(first.save_map(
+        &path,
+        &provenance(),
+        DescriptorPrecision::F16,
+        SaveOptions::default(),
+    ));
+    let keyframes_before: usize = ok(load(&path))
+        .maps
+        .iter()
+        .map(|m| m.map.keyframe_count())
+        .sum();
+
+    // Another model: refused, both fingerprints named, nothing changed.
+    let mut other = common::synthetic_slam::orb_slam(&sequence);
+    let foreign = MapProvenance {
+        model_hash: Some("fedcba9876543210".into()),
+        ..provenance()
+    };
+    let refused = other
+        .load_map(
+            &path,
+            ok(load(&path)),
+            &foreign,
+            spslam::system::LoadedMapUse::ContinueMapping,
+        )
+        .map_err(|e| e.to_string());
+    assert!(
+        matches!(&refused, Err(m) if m.contains("0123456789abcdef") && m.contains("fedcba9876543210")),
+        "{refused:?}"
+    );
+    assert!(other.records().is_empty());
+
+    // The same: continue mapping from frame 15, inside the map (ORB-SLAM3
+    // inserts no keyframe for a second after a relocalisation, so a start
+    // at the map's edge would lose the camera before it could extend it).
+    let mut second = common::synthetic_slam::orb_slam(&sequence);
+    ok(second.load_map(
+        &path,
+        ok(load(&path)),
+        &provenance(),
+        spslam::system::LoadedMapUse::ContinueMapping,
+    ));
+    for i in 15..40 {
+        let (t, l, r) = common::synthetic_slam::images(&sequence, i);
+        ok(second.process(i, t, l.view(), r.view()));
+    }
+    ok(second.finish());
+    let summary = ok(second.summary());
+    eprintln!(
+        "continued: {} of 25 frames tracked, {} relocalisations, {} keyframes inserted, {} maps",
+        summary.tracked,
+        summary.relocalisations,
+        summary.keyframes_inserted,
+        summary.maps.len()
+    );
+    assert_eq!(summary.tracked, 25, "{summary:?}");
+    assert!(summary.relocalisations >= 1);
+    assert!(summary.keyframes_inserted > 0);
+    assert_eq!(summary.maps.len(), 1, "a new map was started");
+    for m in second.atlas().maps() {
+        assert_eq!(
+            ok(m.map.read().map_err(|_| "poisoned")).check_invariants(),
+            Ok(())
+        );
+    }
+    // Save after load (ORB-SLAM3 users' second-save crash), load again.
+    let again = dir.join("second.spmap");
+    ok(second.save_map(
+        &again,
+        &provenance(),
+        DescriptorPrecision::F16,
+        SaveOptions::default(),
+    ));
+    let reloaded: usize = ok(load(&again))
+        .maps
+        .iter()
+        .map(|m| m.map.keyframe_count())
+        .sum();
+    assert!(
+        reloaded > keyframes_before,
+        "{reloaded} <= {keyframes_before}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
