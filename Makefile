@@ -70,7 +70,7 @@ include cpp_shim/orbslam3/orbslam3.mk
 test: lint test-rust test-python cpp-test orbslam3-check
 
 bench: build
-	$(CARGO) bench --bench anms --bench extractor --bench precision --bench slam --bench place_query --bench loop_verify
+	$(CARGO) bench --bench anms --bench extractor --bench precision --bench slam --bench place_query --bench loop_verify --bench map_load
 
 # Regenerates include/spslam.h from src/ffi.rs.
 header:

@@ -7,8 +7,12 @@
 //! - the SLAM core, bottom up: [`map`], [`camera`], [`tracking`] and
 //!   [`mapping`] (which never import each other's layers above), and
 //!   [`system`], which drives them over an atlas of maps;
-//! - [`place`]: place recognition below the system layer (today the
-//!   k-means and DBoW2 vocabulary training behind `spslam vocab train`).
+//! - [`place`]: place recognition below the system layer (VLAD codebooks,
+//!   the keyframe database, the k-means and DBoW2 vocabulary training
+//!   behind `spslam vocab train`);
+//! - [`loop_closing`]: loop and merge detection, verification and
+//!   correction, the global BA;
+//! - [`storage`]: map files (save, load, checks).
 #![warn(missing_docs)]
 
 pub mod camera;
