@@ -25,11 +25,11 @@ use crate::camera::StereoRig;
 use crate::error::{MapContext, SlamError};
 use crate::features::DescriptorSet;
 use crate::map::{KeyFrameId, Map, MapPointId};
-use crate::optim::{LieGroup, Se3};
+use crate::optim::Se3;
 use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 
 use super::thresholds::LoopThresholds;
-use super::verify::{candidate_group, confirm_with, verify_candidate, LoopStage, Verification};
+use super::verify::{check_candidate, confirm_with, CheckedCandidate, LoopStage};
 
 /// A loop the detector accepted: the query keyframe's pose in the loop's
 /// frame and its matches with the loop group.
@@ -303,9 +303,9 @@ impl LoopDetector {
         let exclude = Self::neighbourhood(map, kf);
         let candidates = self.candidates(map, descriptor, &exclude, th.candidates)?;
         for (candidate, score) in candidates {
-            let verified = match verify_candidate(map, kf, candidate, rig, &th)? {
-                Verification::Verified(v) => v,
-                Verification::Rejected { stage, count } => {
+            let checked = match check_candidate(map, kf, map, candidate, rig, &th)? {
+                Ok(checked) => checked,
+                Err((stage, count)) => {
                     if stage != LoopStage::DescriptorMatches {
                         rejected.push(RejectedCandidate {
                             query: kf,
@@ -318,21 +318,12 @@ impl LoopDetector {
                     continue;
                 }
             };
-            let query_pose = map.pose_cw_of(kf).in_stage("loop detection")?;
-            let correction = query_pose.inverse().compose(&verified.pose_cw);
-            let (_, group_points) = candidate_group(map, candidate, th.group_size);
-            let group: HashSet<KeyFrameId> = verified.group.iter().copied().collect();
-            let mut confirmations = 1;
-            for other in map
-                .best_covisible(kf, th.confirming_covisibles)
-                .into_iter()
-                .filter(|k| !group.contains(k))
-            {
-                let c = confirm_with(map, other, &correction, &group_points, rig)?;
-                if c.inliers >= th.min_confirmation_inliers {
-                    confirmations += 1;
-                }
-            }
+            let CheckedCandidate {
+                verified,
+                correction,
+                group_points,
+                confirmations,
+            } = checked;
             tracing::debug!(
                 keyframe = kf.0,
                 candidate = candidate.0,

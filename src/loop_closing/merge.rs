@@ -25,7 +25,7 @@ use crate::place::{KeyframeDatabase, QueryOptions};
 
 use super::detector::{AcceptedLoop, RejectedCandidate};
 use super::thresholds::LoopThresholds;
-use super::verify::{candidate_group, confirm_across, verify_across, LoopStage, Verification};
+use super::verify::{check_candidate, CheckedCandidate, LoopStage};
 
 /// A merge the detector accepted.
 #[derive(Debug, Clone)]
@@ -149,9 +149,9 @@ impl MergeDetector {
             let Some(map) = maps.get(&tag) else {
                 continue;
             };
-            let verified = match verify_across(active, kf, map, candidate, rig, &th)? {
-                Verification::Verified(v) => v,
-                Verification::Rejected { stage, count } => {
+            let checked = match check_candidate(active, kf, map, candidate, rig, &th)? {
+                Ok(checked) => checked,
+                Err((stage, count)) => {
                     if stage != LoopStage::DescriptorMatches {
                         outcome.rejected.push((
                             tag,
@@ -167,18 +167,14 @@ impl MergeDetector {
                     continue;
                 }
             };
-            let query_pose = active.pose_cw_of(kf).in_stage("merge detection")?;
             // The query moves from T_qw to T_qw·C; C takes target-world
             // points to active-world ones.
-            let correction = query_pose.inverse().compose(&verified.pose_cw);
-            let (_, group_points) = candidate_group(map, candidate, th.group_size);
-            let mut confirmations = 1;
-            for other in active.best_covisible(kf, th.confirming_covisibles) {
-                let c = confirm_across(active, other, map, &correction, &group_points, rig)?;
-                if c.inliers >= th.min_confirmation_inliers {
-                    confirmations += 1;
-                }
-            }
+            let CheckedCandidate {
+                verified,
+                correction,
+                confirmations,
+                ..
+            } = checked;
             let earlier = self
                 .streak
                 .filter(|s| s.target == tag)

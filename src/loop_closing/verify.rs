@@ -237,3 +237,61 @@ pub fn confirm_across(
         matches: frame.map_points,
     })
 }
+
+/// A verified candidate with its correction and confirmations.
+#[derive(Debug, Clone)]
+pub(crate) struct CheckedCandidate {
+    /// What the multi-stage check found.
+    pub(crate) verified: VerifiedLoop,
+    /// `C`: the query keyframe moves from `T_qw` to `T_qw·C`.
+    pub(crate) correction: Se3,
+    /// The candidate group's points.
+    pub(crate) group_points: Vec<MapPointId>,
+    /// The query and its covisible keyframes (outside the group) that see
+    /// the group's points once moved by `C`.
+    pub(crate) confirmations: usize,
+}
+
+/// The multi-stage check of `candidate` (in `map`) for keyframe `query`
+/// (in `query_map`; the same map for a loop), then the confirmation by the
+/// query's best covisible keyframes outside the candidate's group.
+/// `Err(stage, count)` names the stage that rejected it.
+pub(crate) fn check_candidate(
+    query_map: &Map,
+    query: KeyFrameId,
+    map: &Map,
+    candidate: KeyFrameId,
+    rig: &StereoRig,
+    th: &LoopThresholds,
+) -> Result<Result<CheckedCandidate, (LoopStage, usize)>, SlamError> {
+    let verified = match verify_across(query_map, query, map, candidate, rig, th)? {
+        Verification::Verified(v) => v,
+        Verification::Rejected { stage, count } => return Ok(Err((stage, count))),
+    };
+    let query_pose = query_map
+        .pose_cw_of(query)
+        .map_err(|source| SlamError::Map {
+            stage: "loop check",
+            source,
+        })?;
+    let correction = query_pose.inverse().compose(&verified.pose_cw);
+    let (_, group_points) = candidate_group(map, candidate, th.group_size);
+    let group: BTreeSet<KeyFrameId> = verified.group.iter().copied().collect();
+    let mut confirmations = 1;
+    for other in query_map
+        .best_covisible(query, th.confirming_covisibles)
+        .into_iter()
+        .filter(|k| !group.contains(k))
+    {
+        let c = confirm_across(query_map, other, map, &correction, &group_points, rig)?;
+        if c.inliers >= th.min_confirmation_inliers {
+            confirmations += 1;
+        }
+    }
+    Ok(Ok(CheckedCandidate {
+        verified,
+        correction,
+        group_points,
+        confirmations,
+    }))
+}

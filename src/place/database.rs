@@ -205,12 +205,7 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
         descriptor: &[f32],
         exclude: &HashSet<K>,
     ) -> Result<Vec<(K, f32)>, PlaceError> {
-        if descriptor.len() != self.dim {
-            return Err(PlaceError::RowLength {
-                expected: self.dim,
-                actual: descriptor.len(),
-            });
-        }
+        self.check_length(descriptor)?;
         Ok(self
             .ids
             .iter()
@@ -218,6 +213,17 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
             .filter(|(k, _)| !exclude.contains(k))
             .map(|(&k, row)| (k, dot(descriptor, row)))
             .collect())
+    }
+
+    /// Fails unless `descriptor` has [`Self::dim`] values.
+    fn check_length(&self, descriptor: &[f32]) -> Result<(), PlaceError> {
+        if descriptor.len() != self.dim {
+            return Err(PlaceError::RowLength {
+                expected: self.dim,
+                actual: descriptor.len(),
+            });
+        }
+        Ok(())
     }
 
     /// The exact similarity of the [`SHORTLIST`] keyframes not in
@@ -228,12 +234,7 @@ impl<K: Copy + Eq + Hash + Ord> KeyframeDatabase<K> {
         descriptor: &[f32],
         exclude: &HashSet<K>,
     ) -> Result<Vec<(K, f32)>, PlaceError> {
-        if descriptor.len() != self.dim {
-            return Err(PlaceError::RowLength {
-                expected: self.dim,
-                actual: descriptor.len(),
-            });
-        }
+        self.check_length(descriptor)?;
         let mut query = Vec::with_capacity(SKETCH_DIM);
         sketch.push(descriptor, &mut query);
         let mut ranked: Vec<(f32, usize)> = self
