@@ -32,15 +32,6 @@ pub enum InvariantViolation {
         /// The point.
         point: MapPointId,
     },
-    /// Issued keyframe ids that are neither live nor culled, or the other
-    /// way round (checked before walking the id ranges).
-    #[error("the id ranges issue {issued} keyframe ids, but {known} keyframes are live or culled")]
-    IssuedCountMismatch {
-        /// Ids the ranges cover.
-        issued: u64,
-        /// Live and culled keyframes.
-        known: u64,
-    },
     /// A keyframe whose per-level tables disagree in length.
     #[error("{keyframe} has per-level tables of different lengths")]
     ScaleTablesMismatch {
@@ -414,26 +405,10 @@ impl Map {
     /// - that a point's normal or distances are finite (the normal of a point
     ///   seen from exactly opposite directions is undefined).
     pub fn check_invariants(&self) -> Result<(), InvariantViolation> {
-        self.check_issued_ids()?;
         self.check_keyframes()?;
         self.check_points()?;
         self.check_covisibility()?;
         self.check_history()
-    }
-
-    /// The issued keyframe ids number exactly the live and culled ones
-    /// (so walking the ranges is bounded by the map's size).
-    fn check_issued_ids(&self) -> Result<(), InvariantViolation> {
-        let issued = self
-            .issued_keyframe_ranges()
-            .iter()
-            .map(|r| r.end.saturating_sub(r.start))
-            .fold(0u64, u64::saturating_add);
-        let known = (self.keyframes.len() + self.culled.len()) as u64;
-        if issued != known {
-            return Err(InvariantViolation::IssuedCountMismatch { issued, known });
-        }
-        Ok(())
     }
 
     fn check_keyframes(&self) -> Result<(), InvariantViolation> {
@@ -710,14 +685,29 @@ impl Map {
                 });
             }
         }
-        for keyframe in self
-            .issued_keyframe_ranges()
-            .into_iter()
-            .flatten()
-            .map(KeyFrameId)
-        {
-            if !self.keyframes.contains_key(&keyframe) && !self.culled.contains_key(&keyframe) {
-                return Err(InvariantViolation::KeyFrameLost { keyframe });
+        // Every issued id is live or culled: walk the known ids of each
+        // range in order (bounded by the map's size, whatever the ranges
+        // claim) and report the first gap.
+        for range in self.issued_keyframe_ranges() {
+            let (from, to) = (KeyFrameId(range.start), KeyFrameId(range.end));
+            let mut known: Vec<u64> = self
+                .keyframes
+                .range(from..to)
+                .map(|(k, _)| k.0)
+                .chain(self.culled.range(from..to).map(|(k, _)| k.0))
+                .collect();
+            known.sort_unstable();
+            let mut expected = range.start;
+            for id in known {
+                if id != expected {
+                    break;
+                }
+                expected += 1;
+            }
+            if expected < range.end {
+                return Err(InvariantViolation::KeyFrameLost {
+                    keyframe: KeyFrameId(expected),
+                });
             }
         }
         for (&point, &into) in &self.replaced {
