@@ -31,6 +31,7 @@ pub struct StereoRectifier {
     cx: f64,
     cy: f64,
     baseline: f64,
+    left_rotation: Matrix3<f64>,
 }
 
 impl StereoRectifier {
@@ -110,6 +111,12 @@ impl StereoRectifier {
                 ),
             });
         }
+        let mut left_rotation = Matrix3::zeros();
+        for i in 0..3 {
+            for j in 0..3 {
+                left_rotation[(i, j)] = at(&r0, i as i32, j as i32)?;
+            }
+        }
         let left_maps = maps(&k0, &d0, &r0, &p0, size)?;
         let right_maps = maps(&k1, &d1, &r1, &p1, size)?;
         Ok(Self {
@@ -121,7 +128,15 @@ impl StereoRectifier {
             cx: at(&p0, 0, 2)?,
             cy: at(&p0, 1, 2)?,
             baseline,
+            left_rotation,
         })
+    }
+
+    /// OpenCV's `R1`: takes points in the raw left camera (`cam0`) to the
+    /// rectified left camera (`p_rect = R1 · p_cam0`), to relate the
+    /// rectified frames to the body frame of the ground truth.
+    pub fn left_rotation(&self) -> Matrix3<f64> {
+        self.left_rotation
     }
 
     /// Rectified focal length in x (pixels).

@@ -73,6 +73,9 @@ pub struct DetectionOutcome {
     pub accepted: Option<AcceptedLoop>,
     /// Candidates rejected after the descriptor stage.
     pub rejected: Vec<RejectedCandidate>,
+    /// The keyframe's global descriptor (`None` without float rows), for
+    /// the merge check that may follow.
+    pub descriptor: Option<Vec<f32>>,
 }
 
 /// A verified loop waiting for confirmations.
@@ -277,6 +280,7 @@ impl LoopDetector {
         write_database(&self.database)
             .insert(kf, &descriptor)
             .in_stage("keyframe database insert")?;
+        outcome.descriptor = Some(descriptor);
         Ok(outcome)
     }
 
@@ -303,18 +307,10 @@ impl LoopDetector {
         let exclude = Self::neighbourhood(map, kf);
         let candidates = self.candidates(map, descriptor, &exclude, th.candidates)?;
         for (candidate, score) in candidates {
-            let checked = match check_candidate(map, kf, map, candidate, rig, &th)? {
+            let checked = match check_candidate(map, kf, map, (candidate, score), rig, &th)? {
                 Ok(checked) => checked,
-                Err((stage, count)) => {
-                    if stage != LoopStage::DescriptorMatches {
-                        rejected.push(RejectedCandidate {
-                            query: kf,
-                            candidate,
-                            score,
-                            stage,
-                            count,
-                        });
-                    }
+                Err(record) => {
+                    rejected.extend(record);
                     continue;
                 }
             };

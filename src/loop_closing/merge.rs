@@ -25,7 +25,7 @@ use crate::place::{KeyframeDatabase, QueryOptions};
 
 use super::detector::{AcceptedLoop, RejectedCandidate};
 use super::thresholds::LoopThresholds;
-use super::verify::{check_candidate, CheckedCandidate, LoopStage};
+use super::verify::{check_candidate, CheckedCandidate};
 
 /// A merge the detector accepted.
 #[derive(Debug, Clone)]
@@ -149,21 +149,10 @@ impl MergeDetector {
             let Some(map) = maps.get(&tag) else {
                 continue;
             };
-            let checked = match check_candidate(active, kf, map, candidate, rig, &th)? {
+            let checked = match check_candidate(active, kf, map, (candidate, score), rig, &th)? {
                 Ok(checked) => checked,
-                Err((stage, count)) => {
-                    if stage != LoopStage::DescriptorMatches {
-                        outcome.rejected.push((
-                            tag,
-                            RejectedCandidate {
-                                query: kf,
-                                candidate,
-                                score,
-                                stage,
-                                count,
-                            },
-                        ));
-                    }
+                Err(record) => {
+                    outcome.rejected.extend(record.map(|r| (tag, r)));
                     continue;
                 }
             };

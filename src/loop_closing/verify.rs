@@ -15,6 +15,7 @@ use crate::tracking::{
     VisiblePoint,
 };
 
+use super::detector::RejectedCandidate;
 use super::thresholds::LoopThresholds;
 
 /// The stage at which a candidate failed.
@@ -255,18 +256,29 @@ pub(crate) struct CheckedCandidate {
 /// The multi-stage check of `candidate` (in `map`) for keyframe `query`
 /// (in `query_map`; the same map for a loop), then the confirmation by the
 /// query's best covisible keyframes outside the candidate's group.
-/// `Err(stage, count)` names the stage that rejected it.
+/// `Err(Some(record))` for a candidate rejected after the descriptor
+/// stage (`score`: its retrieval similarity), `Err(None)` for one rejected
+/// at it (not worth recording).
 pub(crate) fn check_candidate(
     query_map: &Map,
     query: KeyFrameId,
     map: &Map,
-    candidate: KeyFrameId,
+    (candidate, score): (KeyFrameId, f32),
     rig: &StereoRig,
     th: &LoopThresholds,
-) -> Result<Result<CheckedCandidate, (LoopStage, usize)>, SlamError> {
+) -> Result<Result<CheckedCandidate, Option<RejectedCandidate>>, SlamError> {
     let verified = match verify_across(query_map, query, map, candidate, rig, th)? {
         Verification::Verified(v) => v,
-        Verification::Rejected { stage, count } => return Ok(Err((stage, count))),
+        Verification::Rejected { stage, count } => {
+            let record = (stage != LoopStage::DescriptorMatches).then_some(RejectedCandidate {
+                query,
+                candidate,
+                score,
+                stage,
+                count,
+            });
+            return Ok(Err(record));
+        }
     };
     let query_pose = query_map
         .pose_cw_of(query)

@@ -219,7 +219,7 @@ impl LoopClosingStage {
         if !self.merger.has_archived() {
             return Ok(step);
         }
-        let Some(descriptor) = self.detector.describe(&map, kf)? else {
+        let Some(descriptor) = outcome.descriptor else {
             return Ok(step);
         };
         let mut guards = BTreeMap::new();

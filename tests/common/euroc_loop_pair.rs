@@ -11,9 +11,8 @@
 
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Isometry3, Matrix3, Quaternion, Translation3, UnitQuaternion, Vector3};
-use opencv::calib3d;
-use opencv::core::{Mat, Rect, Size};
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
+use opencv::core::Mat;
 use opencv::imgcodecs;
 use opencv::prelude::*;
 use spslam::camera::StereoRig;
@@ -126,74 +125,6 @@ fn read_gray(path: &Path) -> Mat {
     m
 }
 
-/// OpenCV's rectification rotation `R1` of the left camera (points in raw
-/// cam0 → points in the rectified left camera), computed with exactly the
-/// arguments [`StereoRectifier::from_euroc`] uses (it keeps `R1` to itself).
-/// Also returns the rectified `fx` and baseline to check that the two agree.
-fn left_rectification_rotation(
-    cam0: &CameraCalibration,
-    cam1: &CameraCalibration,
-) -> (Matrix3<f64>, f64, f64) {
-    let cv = |e: opencv::Error| -> ! { panic!("OpenCV: {e}") };
-    let mat3 = |m: &Matrix3<f64>| {
-        Mat::from_slice_2d(&[
-            [m[(0, 0)], m[(0, 1)], m[(0, 2)]],
-            [m[(1, 0)], m[(1, 1)], m[(1, 2)]],
-            [m[(2, 0)], m[(2, 1)], m[(2, 2)]],
-        ])
-        .unwrap_or_else(|e| cv(e))
-    };
-    let t_bs1_inv = cam1
-        .t_bs
-        .try_inverse()
-        .unwrap_or_else(|| panic!("cam1 T_BS is singular"));
-    let t_c1_c0 = t_bs1_inv * cam0.t_bs;
-    let r: Matrix3<f64> = t_c1_c0.fixed_view::<3, 3>(0, 0).into_owned();
-    let t = t_c1_c0.fixed_view::<3, 1>(0, 3).into_owned();
-    let size = Size::new(cam0.width as i32, cam0.height as i32);
-    let d0 = Mat::from_slice_2d(&[cam0.distortion]).unwrap_or_else(|e| cv(e));
-    let d1 = Mat::from_slice_2d(&[cam1.distortion]).unwrap_or_else(|e| cv(e));
-    let t_cv = Mat::from_slice_2d(&[[t.x], [t.y], [t.z]]).unwrap_or_else(|e| cv(e));
-    let (mut r0, mut r1, mut p0, mut p1, mut q) = (
-        Mat::default(),
-        Mat::default(),
-        Mat::default(),
-        Mat::default(),
-        Mat::default(),
-    );
-    let (mut roi0, mut roi1) = (Rect::default(), Rect::default());
-    calib3d::stereo_rectify(
-        &mat3(&cam0.camera_matrix()),
-        &d0,
-        &mat3(&cam1.camera_matrix()),
-        &d1,
-        size,
-        &mat3(&r),
-        &t_cv,
-        &mut r0,
-        &mut r1,
-        &mut p0,
-        &mut p1,
-        &mut q,
-        calib3d::CALIB_ZERO_DISPARITY,
-        0.0,
-        size,
-        Some(&mut roi0),
-        Some(&mut roi1),
-    )
-    .unwrap_or_else(|e| cv(e));
-    let at = |m: &Mat, r: i32, c: i32| *m.at_2d::<f64>(r, c).unwrap_or_else(|e| cv(e));
-    let mut rot = Matrix3::zeros();
-    for i in 0..3 {
-        for j in 0..3 {
-            rot[(i, j)] = at(&r0, i as i32, j as i32);
-        }
-    }
-    let fx = at(&p0, 0, 0);
-    let baseline = -at(&p1, 0, 3) / at(&p1, 0, 0);
-    (rot, fx, baseline)
-}
-
 /// The rectifier, the rig and `T_body_rect` (body ← rectified left camera).
 pub struct EurocRig {
     pub rectifier: StereoRectifier,
@@ -230,14 +161,7 @@ pub fn euroc_rig(dir: &Path) -> EurocRig {
     let (w, h) = rectifier.image_size();
     let rig = StereoRig::from_settings(&settings, w as usize, h as usize)
         .unwrap_or_else(|e| panic!("rig: {e}"));
-    let (r1, fx, baseline) = left_rectification_rotation(&cam0, &cam1);
-    assert!(
-        (fx - rectifier.fx()).abs() < 1e-9 && (baseline - rectifier.baseline()).abs() < 1e-12,
-        "the recomputed rectification (fx {fx}, b {baseline}) differs from the library's \
-         (fx {}, b {})",
-        rectifier.fx(),
-        rectifier.baseline()
-    );
+    let r1 = rectifier.left_rotation();
     let t_body_cam0 = Se3::from_matrix(&cam0.t_bs).to_isometry();
     // p_rect = R1 · p_cam0, so T_cam0_rect = [R1ᵀ | 0].
     let t_cam0_rect = Isometry3::from_parts(
