@@ -121,6 +121,7 @@ fn bench(c: &mut Criterion) {
                 close_depth: 20.0,
                 max_depth: None,
                 fps: 10.0,
+                sensor: spslam::camera::Sensor::Stereo,
             },
             precision,
             active_map: 0,

@@ -7,7 +7,7 @@
 //!   1000 keypoints, kd-tree ANMS, 2 intra-op threads;
 //! - KITTI only, the stereo pair as `spslam run` extracts it:
 //!   `stereo_pair_parallel_int8` (two extractors with one thread each, run
-//!   at once, as `StereoExtractors`) and `stereo_pair_sequential_int8` (one
+//!   at once, as `Extractors`) and `stereo_pair_sequential_int8` (one
 //!   extractor with two threads, left then right).
 //!
 //! Data: `SPSLAM_DATA`, else `../shared/data`; the models:

@@ -22,13 +22,13 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
-use spslam::camera::StereoRig;
+use spslam::camera::CameraRig;
 use spslam::dataset::KittiSequence;
 use spslam::features::{FeatureExtractor, GrayImage, OrbConfig, OrbExtractor, SuperPointExtractor};
 use spslam::mapping::MappingStepTimes;
 use spslam::settings::SlamSettings;
-use spslam::system::{FrameRecord, StereoSlam};
-use spslam::tracking::{StereoFeatures, StereoFrontend, TrackingState};
+use spslam::system::{FrameRecord, SlamSystem};
+use spslam::tracking::{Frontend, SensorFeatures, SensorImages, TrackingState};
 
 fn data_dir() -> PathBuf {
     std::env::var_os("SPSLAM_DATA")
@@ -66,15 +66,21 @@ type MakeExtractors = fn(&SlamSettings) -> Result<Extractors, String>;
 fn prepare(
     excerpt: &Excerpt,
     extractors: Extractors,
-) -> Result<(StereoSlam, Vec<StereoFeatures>), String> {
+) -> Result<(SlamSystem, Vec<SensorFeatures>), String> {
     let (w, h) = (excerpt.images[0].1.width(), excerpt.images[0].1.height());
-    let rig = StereoRig::from_settings(&excerpt.settings, w, h).map_err(|e| e.to_string())?;
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(extractors.0, extractors.1, &rig));
+    let rig = CameraRig::from_settings(&excerpt.settings, w, h).map_err(|e| e.to_string())?;
+    let mut slam = SlamSystem::new(rig, Frontend::new(extractors.0, extractors.1, &rig));
     let mut features = Vec::new();
     for (i, (_, l, r)) in excerpt.images.iter().enumerate() {
         features.push(
-            slam.extract(i, l.view(), r.view())
-                .map_err(|e| e.to_string())?,
+            slam.extract(
+                i,
+                SensorImages::Stereo {
+                    left: l.view(),
+                    right: r.view(),
+                },
+            )
+            .map_err(|e| e.to_string())?,
         );
     }
     Ok((slam, features))
@@ -83,9 +89,9 @@ fn prepare(
 /// Resets the system, tracks the whole excerpt (local mapping on its own
 /// thread when `threaded`) and waits for mapping; panics if a frame is lost.
 fn run_excerpt(
-    slam: &mut StereoSlam,
+    slam: &mut SlamSystem,
     excerpt: &Excerpt,
-    features: &[StereoFeatures],
+    features: &[SensorFeatures],
     threaded: bool,
 ) {
     slam.reset().unwrap_or_else(|e| panic!("{e}"));
@@ -95,7 +101,16 @@ fn run_excerpt(
     }
     for (i, ((t, l, r), f)) in excerpt.images.iter().zip(features).enumerate() {
         let record = slam
-            .process_features(i, *t, f.clone(), l.view(), r.view(), 0.0)
+            .process_features(
+                i,
+                *t,
+                f.clone(),
+                SensorImages::Stereo {
+                    left: l.view(),
+                    right: r.view(),
+                },
+                0.0,
+            )
             .unwrap_or_else(|e| panic!("frame {i}: {e}"));
         assert!(record.state == TrackingState::Ok, "frame {i} lost");
     }

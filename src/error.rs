@@ -60,6 +60,30 @@ pub enum SlamError {
         /// What is wrong.
         reason: String,
     },
+    /// An RGB-D frame's depth image differs in size from its image.
+    #[error("frame {frame}: the image is {image_width}x{image_height}, its depth image {depth_width}x{depth_height}; depth must be registered to the image")]
+    DepthSizeMismatch {
+        /// Frame index.
+        frame: usize,
+        /// Image width.
+        image_width: usize,
+        /// Image height.
+        image_height: usize,
+        /// Depth width.
+        depth_width: usize,
+        /// Depth height.
+        depth_height: usize,
+    },
+    /// A frame's images are not what the system's sensor takes.
+    #[error("frame {frame}: the system runs a {expected} sensor but was given {found} images")]
+    SensorMismatch {
+        /// Frame index.
+        frame: usize,
+        /// The system's sensor.
+        expected: crate::camera::Sensor,
+        /// What the frame holds.
+        found: crate::camera::Sensor,
+    },
     /// The left and right images of a frame differ in size.
     #[error("frame {frame}: left image is {left_width}x{left_height}, right is {right_width}x{right_height}")]
     ImageSizeMismatch {
@@ -112,7 +136,7 @@ pub enum SlamError {
     #[error(transparent)]
     Storage(#[from] crate::storage::StorageError),
     /// The extractors were handed to a pipeline thread
-    /// ([`StereoSlam::detach_extractors`](crate::system::StereoSlam::detach_extractors)),
+    /// ([`SlamSystem::detach_extractors`](crate::system::SlamSystem::detach_extractors)),
     /// so this system only tracks features extracted elsewhere.
     #[error("frame {frame}: the extractors run on a pipeline thread; give this system extracted features (process_features)")]
     ExtractorsDetached {

@@ -5,7 +5,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::dataset::synthetic::SplitMix64;
 use crate::features::pyramid::ScaleTables;
 use crate::features::{DescriptorSet, FrameFeatures, Keypoint, StageTimings};
@@ -24,7 +24,7 @@ pub(crate) const DIM: usize = 256;
 pub(crate) struct PointWorld {
     pub points: Vec<Vector3<f64>>,
     pub descriptors: Vec<Vec<f32>>,
-    pub rig: StereoRig,
+    pub rig: CameraRig,
 }
 
 /// What a camera at some pose sees: per keypoint, the world point index.
@@ -36,9 +36,10 @@ pub(crate) struct View {
 }
 
 /// A 640×480 rig, f = 400 px, 0.5 m baseline, close depth 20 m, 10 fps.
-pub(crate) fn rig() -> StereoRig {
+pub(crate) fn rig() -> CameraRig {
     let baseline = 0.5;
-    StereoRig {
+    CameraRig {
+        sensor: crate::camera::Sensor::Stereo,
         camera: PinholeStereo::new(400.0, 400.0, 320.0, 240.0, 400.0 * baseline),
         baseline,
         width: 640,

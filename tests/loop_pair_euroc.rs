@@ -28,7 +28,7 @@
 //!   the original one (`pairs.txt`) gets a loose 10 cm / 3° bound that
 //!   still catches a wrong frame convention (those err by tens of degrees).
 //! - `match2`/`query2` are 0.5 s apart: consecutive views, not a loop.
-//!   [`StereoSlam`] with loop closing on (thresholds loosened so that the
+//!   [`SlamSystem`] with loop closing on (thresholds loosened so that the
 //!   check really runs, from the second keyframe on, and one verification
 //!   would be accepted) runs over them in time order (query2 first) and
 //!   must report no loop: the second keyframe tracked the first and shares
@@ -55,8 +55,8 @@ use spslam::loop_closing::{verify_candidate, LoopDetector, LoopThresholds, Verif
 use spslam::map::KeyFrameId;
 use spslam::place::{default_codebook_path, Codebook};
 use spslam::settings::DEFAULT_SUPERPOINT_LEVELS;
-use spslam::system::StereoSlam;
-use spslam::tracking::StereoFrontend;
+use spslam::system::SlamSystem;
+use spslam::tracking::Frontend;
 
 /// Translation error allowed on the loop's relative pose against
 /// OpenVINS's ground truth (metres).
@@ -215,7 +215,7 @@ fn frames_half_a_second_apart_are_not_a_loop() {
     let codebook = Codebook::load_for(&codebook_path, &config)
         .unwrap_or_else(|e| panic!("{}: {e}", codebook_path.display()));
     let sp = || Box::new(common::extractor(config.clone()));
-    let mut slam = StereoSlam::new(rig.rig, StereoFrontend::new(sp(), sp(), &rig.rig));
+    let mut slam = SlamSystem::new(rig.rig, Frontend::new(sp(), sp(), &rig.rig));
     // Looser than the defaults so that the check really runs on two
     // keyframes: from the second keyframe on, and one verification accepts.
     let th = LoopThresholds {

@@ -26,25 +26,25 @@ use spslam::optim::Se3;
 use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::ExtractorSettings;
 use spslam::storage::{load, DescriptorPrecision, SaveOptions};
-use spslam::system::{LoadedMapUse, MapProvenance, StereoSlam};
-use spslam::tracking::{StereoFrontend, TrackingState};
+use spslam::system::{LoadedMapUse, MapProvenance, SlamSystem};
+use spslam::tracking::{Frontend, TrackingState};
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// A SuperPoint system with loop closing, mapping inline.
-fn system(sequence: &SyntheticSequence) -> StereoSlam {
+fn system(sequence: &SyntheticSequence) -> SlamSystem {
     let rig = rig_of(sequence);
     let config = ExtractorSettings::default().superpoint_config(1, 1);
     let sp = || Box::new(common::extractor(config.clone()));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     let codebook = ok(Codebook::load_for(&default_codebook_for(&config), &config));
     ok(slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default()));
     slam
 }
 
-fn process(slam: &mut StereoSlam, sequence: &SyntheticSequence, frames: std::ops::Range<usize>) {
+fn process(slam: &mut SlamSystem, sequence: &SyntheticSequence, frames: std::ops::Range<usize>) {
     for i in frames {
         let (t, l, r) = images(sequence, i);
         ok(slam.process(i, t, l.view(), r.view()));
@@ -53,7 +53,7 @@ fn process(slam: &mut StereoSlam, sequence: &SyntheticSequence, frames: std::ops
 }
 
 /// Keyframes and points over the atlas.
-fn counts(slam: &StereoSlam) -> (usize, usize) {
+fn counts(slam: &SlamSystem) -> (usize, usize) {
     slam.atlas().maps().iter().fold((0, 0), |(k, p), m| {
         let g = ok(m.map.read().map_err(|_| "poisoned"));
         (k + g.keyframe_count(), p + g.map_point_count())
@@ -61,7 +61,7 @@ fn counts(slam: &StereoSlam) -> (usize, usize) {
 }
 
 /// The loaded map, localisation only.
-fn localiser(sequence: &SyntheticSequence, path: &Path) -> StereoSlam {
+fn localiser(sequence: &SyntheticSequence, path: &Path) -> SlamSystem {
     let mut slam = system(sequence);
     let loaded = ok(load(path));
     ok(slam.load_map(
@@ -82,7 +82,7 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 /// mapped ones they repeat) against the first pass's estimates and
 /// against the truth; the fraction localised.
 fn errors(
-    localised: &StereoSlam,
+    localised: &SlamSystem,
     first_pass: &[(f64, Se3)],
     truth: impl Fn(usize) -> nalgebra::Vector3<f64>,
     offset: usize,

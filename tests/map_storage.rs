@@ -20,7 +20,7 @@ use std::path::PathBuf;
 use spslam::features::DescriptorSet;
 use spslam::map::MapParts;
 use spslam::storage::{load, DescriptorPrecision, SaveOptions, StorageError};
-use spslam::system::{MapProvenance, StereoSlam};
+use spslam::system::{MapProvenance, SlamSystem};
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -43,7 +43,7 @@ fn provenance() -> MapProvenance {
 }
 
 /// Every map's parts, descriptors included.
-fn parts_of(slam: &StereoSlam) -> Vec<MapParts> {
+fn parts_of(slam: &SlamSystem) -> Vec<MapParts> {
     slam.atlas()
         .maps()
         .iter()

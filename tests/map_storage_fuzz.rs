@@ -25,7 +25,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use common::rng::Rng;
 use spslam::storage::{crc32, decode, DescriptorPrecision, SaveOptions, StorageError, HEADER_LEN};
-use spslam::system::{MapProvenance, StereoSlam};
+use spslam::system::{MapProvenance, SlamSystem};
 
 /// Counts live bytes and their peak.
 struct CountingAllocator;
@@ -56,7 +56,7 @@ fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
 }
 
 /// The bytes of `slam`'s map saved with `precision`.
-fn map_file(slam: &StereoSlam, precision: DescriptorPrecision, tag: &str) -> Vec<u8> {
+fn map_file(slam: &SlamSystem, precision: DescriptorPrecision, tag: &str) -> Vec<u8> {
     let path = std::env::temp_dir().join(format!("spslam-fuzz-{tag}-{}.spmap", std::process::id()));
     ok(slam.save_map(
         &path,

@@ -6,13 +6,13 @@
 mod common;
 
 use opencv::imgcodecs;
-use spslam::camera::StereoRig;
+use spslam::camera::CameraRig;
 use spslam::dataset::{EurocSequence, StereoRectifier};
 use spslam::eval::{evaluate, read_euroc, EvalOptions, Pairing, Trajectory};
 use spslam::features::{ExtractorConfig, GrayImage};
 use spslam::settings::SlamSettings;
-use spslam::system::StereoSlam;
-use spslam::tracking::StereoFrontend;
+use spslam::system::SlamSystem;
+use spslam::tracking::Frontend;
 
 fn read_gray(path: &std::path::Path) -> opencv::core::Mat {
     let text = path.to_str().unwrap_or_else(|| panic!("non-UTF-8 path"));
@@ -45,10 +45,10 @@ fn euroc_v1_01_excerpt_superpoint_anms() {
         (image(&pair.left), image(&pair.right))
     };
     let (first, _) = load(0);
-    let rig = StereoRig::from_settings(&settings, first.width(), first.height())
+    let rig = CameraRig::from_settings(&settings, first.width(), first.height())
         .unwrap_or_else(|e| panic!("{e}"));
     let sp = || Box::new(common::extractor(ExtractorConfig::default()));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     if let Some(mapper) = slam.mapper_mut() {
         mapper.check_invariants = true;
     }

@@ -8,8 +8,8 @@ mod common;
 
 use common::synthetic_slam::{images, orb_slam, rig_of, small_sequence};
 use spslam::dataset::synthetic::SceneName;
-use spslam::system::StereoSlam;
-use spslam::tracking::StereoFrontend;
+use spslam::system::SlamSystem;
+use spslam::tracking::Frontend;
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -17,7 +17,7 @@ fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
 
 /// Runs `slam` over the first `frames` frames; returns the frames not tracked.
 fn run(
-    slam: &mut StereoSlam,
+    slam: &mut SlamSystem,
     sequence: &spslam::dataset::synthetic::SyntheticSequence,
     frames: usize,
 ) -> Vec<usize> {
@@ -69,7 +69,7 @@ fn the_paper_depth_filter_loses_the_highway() {
                 .unwrap_or_else(|e| panic!("{e}")),
         )
     };
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(orb(), orb(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(orb(), orb(), &rig));
     let lost = run(&mut slam, &sequence, sequence.len());
     eprintln!(
         "highway with the 20 m filter: {} of 60 frames not tracked",

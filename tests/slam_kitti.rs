@@ -9,13 +9,13 @@
 
 mod common;
 
-use spslam::camera::StereoRig;
+use spslam::camera::CameraRig;
 use spslam::dataset::KittiSequence;
 use spslam::eval::{evaluate, read_kitti, EvalOptions, Pairing, Trajectory};
 use spslam::features::{GrayImage, Precision};
 use spslam::settings::{ExtractorSettings, SlamSettings};
-use spslam::system::StereoSlam;
-use spslam::tracking::StereoFrontend;
+use spslam::system::SlamSystem;
+use spslam::tracking::Frontend;
 
 /// What one run gave: ATE SE3 (m), final drift (% of the path), frames not tracked.
 struct KittiRun {
@@ -35,7 +35,7 @@ fn run_kitti(data: &std::path::Path, precision: Option<Precision>) -> KittiRun {
         settings.extractor.precision = precision;
     }
     let first = GrayImage::load(&seq.frames()[0].left).unwrap_or_else(|e| panic!("{e}"));
-    let rig = StereoRig::from_settings(&settings, first.width(), first.height())
+    let rig = CameraRig::from_settings(&settings, first.width(), first.height())
         .unwrap_or_else(|e| panic!("{e}"));
     // What `spslam run` builds: SuperPoint on the settings' SuperPoint
     // levels, kd-tree ANMS, every stereo depth kept (far points tracked
@@ -44,7 +44,7 @@ fn run_kitti(data: &std::path::Path, precision: Option<Precision>) -> KittiRun {
         .extractor
         .superpoint_config(settings.extractor.superpoint_levels, 1);
     let sp = || Box::new(common::extractor(config.clone()));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     if let Some(mapper) = slam.mapper_mut() {
         mapper.check_invariants = true;
     }

@@ -30,8 +30,8 @@ use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
 use spslam::loop_closing::LoopThresholds;
 use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::ExtractorSettings;
-use spslam::system::{LoopRecord, MergeRecord, StereoSlam};
-use spslam::tracking::StereoFrontend;
+use spslam::system::{LoopRecord, MergeRecord, SlamSystem};
+use spslam::tracking::Frontend;
 use spslam::tracking::TrackingState;
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
@@ -69,7 +69,7 @@ fn run_on(
     let rig = rig_of(sequence);
     let config = ExtractorSettings::default().superpoint_config(1, 1);
     let sp = || Box::new(common::extractor(config.clone()));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     if threaded {
         ok(slam.spawn_mapping_thread());
     }

@@ -20,8 +20,8 @@ use common::synthetic_slam::{images, rig_of, small_sequence};
 use spslam::dataset::synthetic::{SceneName, SyntheticSequence};
 use spslam::features::GrayImage;
 use spslam::settings::ExtractorSettings;
-use spslam::system::StereoSlam;
-use spslam::tracking::{StereoFrontend, TrackingMethod, TrackingState, MAX_SCANNED_KEYFRAMES};
+use spslam::system::SlamSystem;
+use spslam::tracking::{Frontend, TrackingMethod, TrackingState, MAX_SCANNED_KEYFRAMES};
 
 /// Frames of the lap driven before the blackout (about half the lap of
 /// 231 frames: the camera is on the far side of the block, looking away
@@ -96,7 +96,7 @@ fn run(sequence: &SyntheticSequence, loop_closing: bool) -> Run {
     let rig = rig_of(sequence);
     let config = ExtractorSettings::default().superpoint_config(1, 1);
     let sp = || Box::new(common::extractor(config.clone()));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     if loop_closing {
         common::enable_loop_closing(&mut slam, &config);
     }

@@ -7,13 +7,13 @@
 
 mod common;
 
-use spslam::camera::StereoRig;
+use spslam::camera::CameraRig;
 use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticSequence};
 use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
 use spslam::features::GrayImage;
 use spslam::settings::SlamSettings;
-use spslam::system::StereoSlam;
-use spslam::tracking::StereoFrontend;
+use spslam::system::SlamSystem;
+use spslam::tracking::Frontend;
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -29,13 +29,13 @@ fn one_lap_at_480x360_with_superpoint_on_8_levels() {
     let sequence = ok(SyntheticSequence::new(config));
     let cam = *sequence.camera();
     let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
-    let rig = ok(StereoRig::from_settings(&settings, cam.width, cam.height));
+    let rig = ok(CameraRig::from_settings(&settings, cam.width, cam.height));
     let sp_config = settings
         .extractor
         .superpoint_config(settings.extractor.n_levels, 1);
     assert_eq!(settings.extractor.n_levels, 8);
     let sp = || Box::new(common::extractor(sp_config.clone()));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     if let Some(mapper) = slam.mapper_mut() {
         mapper.check_invariants = true;
     }

@@ -118,7 +118,7 @@ fn tracking_goes_on_while_local_ba_is_solved_and_new_keyframes_abort_it() {
     }
     ok(slam.spawn_mapping_thread());
     let mut next = 0;
-    let process = |slam: &mut spslam::system::StereoSlam, i: usize| {
+    let process = |slam: &mut spslam::system::SlamSystem, i: usize| {
         let (t, l, r) = images(&sequence, i);
         ok(slam.process(i, t, l.view(), r.view())).state
     };

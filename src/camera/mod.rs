@@ -3,6 +3,10 @@
 //! optional depth filter. It sits below tracking and mapping, so both can
 //! use it without importing each other.
 
-mod stereo_rig;
+mod depth;
+mod rig;
+mod sensor;
 
-pub use stereo_rig::StereoRig;
+pub use depth::{DepthError, DepthImage};
+pub use rig::CameraRig;
+pub use sensor::{Sensor, UnknownSensor};

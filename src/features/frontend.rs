@@ -1,7 +1,7 @@
 //! One interface over the feature extractors (SuperPoint with or without ANMS,
 //! ORB), so that the SLAM front end does not care which one runs.
 
-use super::descriptor_set::DescriptorSet;
+use super::descriptor_set::{DescriptorKind, DescriptorSet};
 use super::pyramid::ScaleTables;
 use super::{FeatureError, Features, GrayImageView, Keypoint, StageTimings, SuperPointExtractor};
 
@@ -50,6 +50,16 @@ pub trait FeatureExtractor: Send {
     fn scale_tables(&self) -> &ScaleTables;
     /// A short name for logs and reports, e.g. `superpoint+kdtree` or `orb`.
     fn name(&self) -> &str;
+    /// What its descriptors are: this picks the matching metric and
+    /// thresholds (Hamming for binary, L2 for float).
+    fn descriptor_kind(&self) -> DescriptorKind;
+    /// The period, in level pixels, of a lattice the descriptors repeat
+    /// (SuperPoint's 8-px descriptor cell: a candidate one cell off can
+    /// look as good as the truth); `None` when there is none (ORB). Stereo
+    /// matching guards against it.
+    fn descriptor_cell(&self) -> Option<f32> {
+        None
+    }
     /// How it runs, for reports: e.g. `int8 on cpu, 2 levels`.
     fn inference_summary(&self) -> String {
         format!("{} levels", self.scale_tables().n_levels())
@@ -63,6 +73,16 @@ impl FeatureExtractor for SuperPointExtractor {
 
     fn scale_tables(&self) -> &ScaleTables {
         SuperPointExtractor::scale_tables(self)
+    }
+
+    fn descriptor_kind(&self) -> DescriptorKind {
+        DescriptorKind::Float {
+            dim: self.descriptor_len(),
+        }
+    }
+
+    fn descriptor_cell(&self) -> Option<f32> {
+        Some(super::model::CELL as f32)
     }
 
     fn name(&self) -> &str {

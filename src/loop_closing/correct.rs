@@ -17,7 +17,7 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use nalgebra::Vector3;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::mapping::{apply_fusion_candidates, plan_fusion_into, refresh_observed_points};
@@ -56,7 +56,7 @@ pub fn pose_difference(a: &Se3, b: &Se3) -> (f64, f64) {
 pub fn correct_loop(
     map: &mut Map,
     accepted: &AcceptedLoop,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<LoopCorrection, SlamError> {
     let query_pose = map.pose_cw_of(accepted.query).in_stage("loop correction")?;
     let correction = query_pose.inverse().compose(&accepted.pose_cw);

@@ -21,7 +21,7 @@
 use std::collections::HashSet;
 use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::features::DescriptorSet;
 use crate::map::{KeyFrameId, Map, MapPointId};
@@ -265,7 +265,7 @@ impl LoopDetector {
         &mut self,
         map: &Map,
         kf: KeyFrameId,
-        rig: &StereoRig,
+        rig: &CameraRig,
     ) -> Result<DetectionOutcome, SlamError> {
         self.forget_culled(map);
         let mut outcome = DetectionOutcome::default();
@@ -300,7 +300,7 @@ impl LoopDetector {
         map: &Map,
         kf: KeyFrameId,
         descriptor: &[f32],
-        rig: &StereoRig,
+        rig: &CameraRig,
         rejected: &mut Vec<RejectedCandidate>,
     ) -> Result<Option<AcceptedLoop>, SlamError> {
         let th = self.thresholds;
@@ -357,7 +357,7 @@ impl LoopDetector {
         &mut self,
         map: &Map,
         kf: KeyFrameId,
-        rig: &StereoRig,
+        rig: &CameraRig,
         rejected: &mut Vec<RejectedCandidate>,
     ) -> Result<Option<AcceptedLoop>, SlamError> {
         let th = self.thresholds;

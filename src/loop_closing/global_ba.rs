@@ -16,7 +16,7 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::atomic::AtomicBool;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::mapping::keyframe_observation;
@@ -69,7 +69,7 @@ impl SolvedGlobalBa {
 
 /// Snapshot: the whole map as a BA problem (read only). `None` when the
 /// map has fewer than two keyframes or no observation.
-pub fn snapshot_global_ba(map: &Map, rig: &StereoRig) -> Option<GlobalBaSnapshot> {
+pub fn snapshot_global_ba(map: &Map, rig: &CameraRig) -> Option<GlobalBaSnapshot> {
     let keyframes: Vec<KeyFrameId> = map.keyframes().map(|k| k.id()).collect();
     if keyframes.len() < 2 {
         return None;

@@ -17,7 +17,7 @@
 
 use std::collections::{BTreeMap, HashSet};
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map};
 use crate::optim::{LieGroup, Se3};
@@ -116,7 +116,7 @@ impl MergeDetector {
         kf: KeyFrameId,
         descriptor: &[f32],
         maps: &BTreeMap<usize, &Map>,
-        rig: &StereoRig,
+        rig: &CameraRig,
     ) -> Result<MergeOutcome, SlamError> {
         let th = self.thresholds;
         let mut outcome = MergeOutcome::default();

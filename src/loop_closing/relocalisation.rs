@@ -35,7 +35,7 @@ const RELOCALISATION_GROUP_SIZE: usize = 10;
 
 /// Relocalisation candidates from the shared keyframe database (see the
 /// module's docs). Set on the tracker by
-/// [`StereoSlam::enable_loop_closing`](crate::system::StereoSlam::enable_loop_closing).
+/// [`SlamSystem::enable_loop_closing`](crate::system::SlamSystem::enable_loop_closing).
 pub struct DatabaseRelocaliser {
     descriptor: Arc<dyn GlobalDescriptor>,
     database: SharedKeyframeDatabase,
@@ -149,7 +149,7 @@ impl RelocalisationCandidates for DatabaseRelocaliser {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::StereoRig;
+    use crate::camera::CameraRig;
     use crate::loop_closing::{LoopDetector, LoopThresholds};
     use crate::place::PlaceError;
     use crate::settings::SlamSettings;
@@ -194,7 +194,7 @@ mod tests {
     #[test]
     fn a_fresh_tracker_keeps_its_candidate_source() {
         let settings = SlamSettings::rectified_stereo(400.0, 400.0, 320.0, 240.0, 0.1);
-        let rig = StereoRig::from_settings(&settings, 640, 480).unwrap_or_else(|e| panic!("{e}"));
+        let rig = CameraRig::from_settings(&settings, 640, 480).unwrap_or_else(|e| panic!("{e}"));
         let mut tracker = Tracker::new(rig);
         assert!(!tracker.has_relocalisation_candidates());
         let detector = LoopDetector::new(Arc::new(Fixed), LoopThresholds::default())

@@ -6,7 +6,7 @@
 
 use std::collections::BTreeSet;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::{LieGroup, Se3};
@@ -91,7 +91,7 @@ fn search(
     frame: &mut Frame,
     map: &Map,
     points: &[MapPointId],
-    rig: &StereoRig,
+    rig: &CameraRig,
     radius: f32,
 ) -> Result<usize, SlamError> {
     let taken: BTreeSet<MapPointId> = frame.map_points.iter().flatten().copied().collect();
@@ -108,7 +108,7 @@ pub fn verify_candidate(
     map: &Map,
     query: KeyFrameId,
     candidate: KeyFrameId,
-    rig: &StereoRig,
+    rig: &CameraRig,
     th: &LoopThresholds,
 ) -> Result<Verification, SlamError> {
     verify_across(map, query, map, candidate, rig, th)
@@ -122,7 +122,7 @@ pub fn verify_across(
     query: KeyFrameId,
     map: &Map,
     candidate: KeyFrameId,
-    rig: &StereoRig,
+    rig: &CameraRig,
     th: &LoopThresholds,
 ) -> Result<Verification, SlamError> {
     let rejected = |stage, count| Ok(Verification::Rejected { stage, count });
@@ -201,7 +201,7 @@ pub fn confirm_with(
     kf: KeyFrameId,
     correction: &Se3,
     group_points: &[MapPointId],
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<Confirmation, SlamError> {
     confirm_across(map, kf, map, correction, group_points, rig)
 }
@@ -214,7 +214,7 @@ pub fn confirm_across(
     map: &Map,
     correction: &Se3,
     group_points: &[MapPointId],
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<Confirmation, SlamError> {
     let Ok(keyframe) = query_map.keyframe(kf) else {
         return Ok(Confirmation {
@@ -264,7 +264,7 @@ pub(crate) fn check_candidate(
     query: KeyFrameId,
     map: &Map,
     (candidate, score): (KeyFrameId, f32),
-    rig: &StereoRig,
+    rig: &CameraRig,
     th: &LoopThresholds,
 ) -> Result<Result<CheckedCandidate, Option<RejectedCandidate>>, SlamError> {
     let verified = match verify_across(query_map, query, map, candidate, rig, th)? {

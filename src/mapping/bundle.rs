@@ -5,7 +5,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::AtomicBool;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::local_ba::{
@@ -70,7 +70,7 @@ pub(crate) struct BundleSnapshot {
 pub(crate) fn snapshot_bundle(
     map: &Map,
     keyframe: KeyFrameId,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Option<BundleSnapshot> {
     let first = map.keyframes().next().map(|k| k.id());
     let mut local = vec![keyframe];

@@ -3,7 +3,7 @@
 
 use std::collections::BTreeSet;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::matching::{DistanceThresholds, KeypointGrid};
@@ -19,7 +19,7 @@ fn fuse_candidate(
     target: KeyFrameId,
     grid: &KeypointGrid,
     point: MapPointId,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Option<usize> {
     let kf = map.keyframe(target).ok()?;
     let p = map.map_point(point).ok()?;
@@ -99,7 +99,7 @@ fn candidates_in(
     map: &Map,
     target: KeyFrameId,
     points: &[MapPointId],
-    rig: &StereoRig,
+    rig: &CameraRig,
     out: &mut Vec<FusionCandidate>,
 ) {
     let Ok(kf) = map.keyframe(target) else {
@@ -128,7 +128,7 @@ fn candidates_in(
 pub(crate) fn plan_fusion(
     map: &Map,
     keyframe: KeyFrameId,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Vec<FusionCandidate> {
     let mut targets: BTreeSet<KeyFrameId> = BTreeSet::new();
     for n in map.best_covisible(keyframe, 10) {
@@ -163,7 +163,7 @@ pub(crate) fn plan_fusion_into(
     map: &Map,
     targets: &[KeyFrameId],
     points: &[MapPointId],
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Vec<FusionCandidate> {
     let mut planned = Vec::new();
     for target in targets {

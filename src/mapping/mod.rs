@@ -8,7 +8,7 @@
 //! (tracking reads alongside), computes with no lock held where the work is
 //! heavy (the BA solve), and writes the result under a short write lock,
 //! skipping entities culled or fused in the meantime. The driver
-//! ([`crate::system::StereoSlam`]) calls it inline or on its thread.
+//! ([`crate::system::SlamSystem`]) calls it inline or on its thread.
 
 mod bundle;
 mod fuse;
@@ -22,7 +22,7 @@ pub(crate) use bundle::keyframe_observation;
 pub use bundle::BundleSummary;
 pub(crate) use fuse::{apply_fusion_candidates, plan_fusion_into};
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId, PointCullingReport, SharedMap};
 use bundle::{apply_bundle, snapshot_bundle, solve_bundle};
@@ -88,7 +88,7 @@ pub type SolveHook = Arc<dyn Fn() + Send + Sync>;
 
 /// The local-mapping state: the recently created points under probation.
 pub struct LocalMapper {
-    rig: StereoRig,
+    rig: CameraRig,
     recent_points: Vec<MapPointId>,
     abort: Arc<AtomicBool>,
     before_solve: Option<SolveHook>,
@@ -122,7 +122,7 @@ fn write(map: &SharedMap) -> Result<RwLockWriteGuard<'_, Map>, SlamError> {
 
 impl LocalMapper {
     /// A mapper for `rig`.
-    pub fn new(rig: StereoRig) -> Self {
+    pub fn new(rig: CameraRig) -> Self {
         Self {
             rig,
             recent_points: Vec::new(),

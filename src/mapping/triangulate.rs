@@ -4,7 +4,7 @@
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::features::DescriptorSet;
 use crate::map::{FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor};
@@ -77,7 +77,7 @@ impl View {
 }
 
 /// `F21`: maps a pixel of view 1 to its epipolar line in view 2.
-fn fundamental(v1: &View, v2: &View, rig: &StereoRig) -> Matrix3<f64> {
+fn fundamental(v1: &View, v2: &View, rig: &CameraRig) -> Matrix3<f64> {
     let rel = v2.pose.compose(&v1.pose.inverse());
     let e = hat(&rel.translation) * rel.rotation_matrix();
     let c = &rig.camera;
@@ -97,7 +97,7 @@ fn fundamental(v1: &View, v2: &View, rig: &StereoRig) -> Matrix3<f64> {
 
 /// Matches unmatched keypoints of `v1` to unmatched ones of `v2` near their
 /// epipolar lines (descriptor TH_LOW, ratio 0.6, one match per keypoint).
-fn epipolar_matches(v1: &View, v2: &View, rig: &StereoRig) -> Vec<(usize, usize)> {
+fn epipolar_matches(v1: &View, v2: &View, rig: &CameraRig) -> Vec<(usize, usize)> {
     let f21 = fundamental(v1, v2, rig);
     let d1 = &v1.measurements.descriptors;
     let d2: &DescriptorSet = &v2.measurements.descriptors;
@@ -180,7 +180,7 @@ fn triangulate(p1: &Se3, x1: (f64, f64), p2: &Se3, x2: (f64, f64)) -> Option<Vec
 }
 
 /// The reprojection test of a new point in one view (χ² at 95 %).
-fn reprojects_well(view: &View, i: usize, x: &Vector3<f64>, rig: &StereoRig) -> bool {
+fn reprojects_well(view: &View, i: usize, x: &Vector3<f64>, rig: &CameraRig) -> bool {
     let pc = view.pose.transform_point(x);
     if pc.z <= 0.0 {
         return false;
@@ -204,7 +204,7 @@ fn point_for_match(
     i1: usize,
     v2: &View,
     i2: usize,
-    rig: &StereoRig,
+    rig: &CameraRig,
     scale_factor: f64,
 ) -> Option<Vector3<f64>> {
     let c = &rig.camera;
@@ -261,7 +261,7 @@ pub(crate) struct NewPoint {
 
 /// Compute: triangulates the new keyframe's free keypoints against its best
 /// covisible keyframes (read only).
-pub(crate) fn plan_new_points(map: &Map, keyframe: KeyFrameId, rig: &StereoRig) -> Vec<NewPoint> {
+pub(crate) fn plan_new_points(map: &Map, keyframe: KeyFrameId, rig: &CameraRig) -> Vec<NewPoint> {
     let Some(mut v1) = view(map, keyframe) else {
         return Vec::new();
     };

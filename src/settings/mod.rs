@@ -235,6 +235,17 @@ fn read_camera(reader: &SettingsReader) -> Result<CameraSettings> {
             .optional_f64(&[&format!("Camera1.{key}"), &format!("Camera.{key}")])?
             .unwrap_or(0.0))
     };
+    // ORB-SLAM3 v1.0 (`Settings::readCamera1`): `PinHole`, `Rectified` or
+    // `KannalaBrandt8`; the fisheye model is not supported here.
+    if let Some(kind) = reader.optional_string(&["Camera.type"])? {
+        if !matches!(kind.as_str(), "PinHole" | "Rectified") {
+            return Err(reader.invalid(
+                "Camera.type",
+                &kind,
+                "spslam supports `PinHole` and `Rectified` cameras (not `KannalaBrandt8`)",
+            ));
+        }
+    }
     let (fx, fy, cx, cy) = (value("fx")?, value("fy")?, value("cx")?, value("cy")?);
     for (key, v) in [("Camera1.fx", fx), ("Camera1.fy", fy)] {
         if v <= 0.0 {

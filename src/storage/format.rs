@@ -1,9 +1,9 @@
-//! The map file format, version 1.
+//! The map file format, version 2 (version 1 had no sensor in the rig).
 //!
 //! ```text
 //! offset  size  field
 //! 0       8     magic "SPSLMAP\x1a"
-//! 8       4     format version, u32 little-endian (1)
+//! 8       4     format version, u32 little-endian (2)
 //! 12      8     payload length in bytes, u64 little-endian
 //! 20      4     CRC-32 (IEEE) of the payload, u32 little-endian
 //! 24      …     payload: a `StoredAtlas`, postcard-encoded
@@ -30,7 +30,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::camera::StereoRig;
+use crate::camera::{CameraRig, Sensor};
 use crate::features::DescriptorSet;
 use crate::map::{KeyFrameId, Map, MapParts, PointDescriptor};
 use crate::optim::reprojection::PinholeStereo;
@@ -44,7 +44,7 @@ use super::error::StorageError;
 /// The first 8 bytes of every map file.
 pub const MAGIC: [u8; 8] = *b"SPSLMAP\x1a";
 /// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 /// Header bytes before the payload.
 pub const HEADER_LEN: usize = 24;
 
@@ -73,10 +73,12 @@ pub struct StoredRig {
     pub max_depth: Option<f64>,
     /// Frame rate.
     pub fps: f64,
+    /// The sensor the map was made with (a monocular map has no metric scale).
+    pub sensor: Sensor,
 }
 
-impl From<&StereoRig> for StoredRig {
-    fn from(rig: &StereoRig) -> Self {
+impl From<&CameraRig> for StoredRig {
+    fn from(rig: &CameraRig) -> Self {
         Self {
             fx: rig.camera.fx,
             fy: rig.camera.fy,
@@ -89,13 +91,15 @@ impl From<&StereoRig> for StoredRig {
             close_depth: rig.close_depth,
             max_depth: rig.max_depth,
             fps: rig.fps,
+            sensor: rig.sensor,
         }
     }
 }
 
-impl From<&StoredRig> for StereoRig {
+impl From<&StoredRig> for CameraRig {
     fn from(r: &StoredRig) -> Self {
-        StereoRig {
+        CameraRig {
+            sensor: r.sensor,
             camera: PinholeStereo {
                 fx: r.fx,
                 fy: r.fy,

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 use crate::loop_closing::{snapshot_global_ba, solve_global_ba, SolvedGlobalBa};
 use crate::map::SharedMap;
@@ -24,7 +24,7 @@ pub(crate) struct GlobalBaThread {
 /// Snapshot (read lock) and solve (no lock); `None` for a map too small.
 pub(crate) fn run_global_ba(
     map: &SharedMap,
-    rig: &StereoRig,
+    rig: &CameraRig,
     abort: &AtomicBool,
 ) -> Result<Option<SolvedGlobalBa>, SlamError> {
     let snapshot = {
@@ -36,7 +36,7 @@ pub(crate) fn run_global_ba(
 
 impl GlobalBaThread {
     /// Starts a global BA of `map` on its own thread.
-    pub(crate) fn spawn(map: SharedMap, rig: StereoRig) -> Result<Self, SlamError> {
+    pub(crate) fn spawn(map: SharedMap, rig: CameraRig) -> Result<Self, SlamError> {
         let abort = Arc::new(AtomicBool::new(false));
         let flag = Arc::clone(&abort);
         let shared = map.clone();

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 use std::collections::BTreeMap;
 
@@ -194,7 +194,7 @@ impl LoopClosingStage {
         &mut self,
         map: &SharedMap,
         others: &BTreeMap<usize, SharedMap>,
-        rig: &StereoRig,
+        rig: &CameraRig,
     ) -> Result<DetectStep, SlamError> {
         let mut step = DetectStep::default();
         let Some(kf) = self.queue.pop_front() else {
@@ -256,7 +256,7 @@ impl LoopClosingStage {
         active_index: usize,
         target: &SharedMap,
         accepted: &AcceptedMerge,
-        rig: &StereoRig,
+        rig: &CameraRig,
     ) -> Result<Option<MergeRecord>, SlamError> {
         let mut from = active.write().map_err(|_| SlamError::PoisonedMap)?;
         let mut into = target.write().map_err(|_| SlamError::PoisonedMap)?;
@@ -318,7 +318,7 @@ impl LoopClosingStage {
         &mut self,
         map: &SharedMap,
         accepted: &AcceptedLoop,
-        rig: &StereoRig,
+        rig: &CameraRig,
     ) -> Result<Option<LoopRecord>, SlamError> {
         let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
         if map.keyframe(accepted.query).is_err() || map.keyframe(accepted.candidate).is_err() {

@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::thread::JoinHandle;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 use crate::map::{KeyFrameId, SharedMap};
 
@@ -63,7 +63,7 @@ pub(crate) struct LoopClosingThread {
 
 fn run(
     mut stage: LoopClosingStage,
-    rig: StereoRig,
+    rig: CameraRig,
     queued: AtlasView,
     jobs: Receiver<LoopJob>,
     findings: Sender<LoopFinding>,
@@ -105,7 +105,7 @@ impl LoopClosingThread {
     /// checked first, against `maps`.
     pub(crate) fn spawn(
         stage: LoopClosingStage,
-        rig: StereoRig,
+        rig: CameraRig,
         maps: AtlasView,
     ) -> Result<Self, SlamError> {
         let (job_tx, job_rx) = mpsc::channel();

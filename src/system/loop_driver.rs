@@ -1,4 +1,4 @@
-//! How [`StereoSlam`] drives loop closing: the keyframes local mapping has
+//! How [`SlamSystem`] drives loop closing: the keyframes local mapping has
 //! processed go to the stage (inline) or to the loop-closing thread; what
 //! either finds is corrected here, between frames, with local mapping
 //! paused: a loop ([`LoopClosingStage::correct`]) or a merge of the active
@@ -16,10 +16,10 @@ use super::loop_closing_stage::{
     Detection, LoopClosingStage, LoopRecord, MergeRecord, RejectedLoopRecord,
 };
 use super::loop_closing_thread::{AtlasView, LoopClosingThread, LoopFinding};
-use super::stereo_slam::{LoopClosing, Mapping};
-use super::StereoSlam;
+use super::slam_system::{LoopClosing, Mapping};
+use super::SlamSystem;
 
-impl StereoSlam {
+impl SlamSystem {
     /// Switches loop closing on, with `descriptor` for place recognition
     /// (a VLAD codebook, see [`crate::place::Codebook`]). Keyframes made
     /// before this call are not checked. With a local-mapping thread

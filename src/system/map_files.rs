@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 use crate::storage::{
     save, DescriptorPrecision, LoadedAtlas, MapFileMeta, MapToSave, SaveOptions, SaveReport,
@@ -12,8 +12,8 @@ use crate::storage::{
 };
 
 use super::atlas::Atlas;
-use super::stereo_slam::{LoopClosing, Mapping};
-use super::StereoSlam;
+use super::slam_system::{LoopClosing, Mapping};
+use super::SlamSystem;
 
 /// What a run does with a loaded map.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -65,7 +65,7 @@ fn check_provenance(
 }
 
 /// Whether two rigs are the same camera (intrinsics, baseline, size).
-fn same_camera(a: &StereoRig, b: &StereoRig) -> bool {
+fn same_camera(a: &CameraRig, b: &CameraRig) -> bool {
     let close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * x.abs().max(y.abs()).max(1.0);
     close(a.camera.fx, b.camera.fx)
         && close(a.camera.fy, b.camera.fy)
@@ -76,7 +76,7 @@ fn same_camera(a: &StereoRig, b: &StereoRig) -> bool {
         && a.height == b.height
 }
 
-impl StereoSlam {
+impl SlamSystem {
     /// Starts over on a loaded atlas (`path` names the file in errors):
     /// its maps replace this system's, the active one is activated (the
     /// next frame relocalises against it, through the keyframe database
@@ -97,7 +97,7 @@ impl StereoSlam {
         use_: LoadedMapUse,
     ) -> Result<(), SlamError> {
         check_provenance(path, &loaded.meta, self.extractor_name(), current)?;
-        let rig = StereoRig::from(&loaded.meta.rig);
+        let rig = CameraRig::from(&loaded.meta.rig);
         if !same_camera(&rig, &self.rig) {
             return Err(StorageError::BuiltWithAnother {
                 path: path.to_path_buf(),

@@ -1,6 +1,6 @@
 //! The system layer: the driver that owns the threads and the atlas.
 //!
-//! - [`StereoSlam`]: the front end, tracking (on the caller's thread) and
+//! - [`SlamSystem`]: the front end, tracking (on the caller's thread) and
 //!   local mapping (inline or on its [`MappingThread`]) over an [`Atlas`];
 //!   loss is never final: when relocalisation keeps failing, tracking
 //!   starts a new map (see [`crate::tracking::RELOCALISATION_PATIENCE_S`]);
@@ -20,11 +20,11 @@ mod loop_closing_thread;
 mod loop_driver;
 mod map_files;
 mod records;
-mod stereo_slam;
+mod slam_system;
 
 pub use atlas::{Atlas, AtlasMap, MapIndex};
 pub use local_mapping_thread::{MappingResult, MappingThread};
 pub use loop_closing_stage::{LoopRecord, MergeRecord, RejectedLoopRecord};
 pub use map_files::{LoadedMapUse, MapProvenance};
 pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
-pub use stereo_slam::StereoSlam;
+pub use slam_system::SlamSystem;

@@ -7,7 +7,7 @@ use crate::map::{FrameMeasurements, KeyFrame, KeyFrameId, MapPointId, StereoMeas
 use crate::matching::KeypointGrid;
 use crate::optim::{LieGroup, Se3};
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 
 /// One stereo frame being tracked.
 #[derive(Debug, Clone)]
@@ -44,7 +44,7 @@ impl Frame {
         mut features: FrameFeatures,
         mut stereo: Vec<Option<StereoMeasurement>>,
         scales: ScaleTables,
-        rig: &StereoRig,
+        rig: &CameraRig,
     ) -> Self {
         for (kp, st) in features.keypoints.iter_mut().zip(stereo.iter_mut()) {
             let Some(&scale) = usize::try_from(kp.octave)
@@ -78,7 +78,7 @@ impl Frame {
     /// A keyframe seen again as a frame (loop verification): its keypoints
     /// (already pixel-centre-exact), descriptors, stereo matches, map points
     /// and pose.
-    pub fn from_keyframe(kf: &KeyFrame, rig: &StereoRig) -> Self {
+    pub fn from_keyframe(kf: &KeyFrame, rig: &CameraRig) -> Self {
         let m = &kf.measurements;
         Self {
             index: kf.frame_index,
@@ -128,7 +128,7 @@ impl Frame {
     }
 
     /// The world position of keypoint `i` from its stereo depth.
-    pub fn unproject_world(&self, i: usize, rig: &StereoRig) -> Option<nalgebra::Vector3<f64>> {
+    pub fn unproject_world(&self, i: usize, rig: &CameraRig) -> Option<nalgebra::Vector3<f64>> {
         let depth = self.depth(i)?;
         let kp = self.features.keypoints.get(i)?;
         let camera_point = rig.unproject(f64::from(kp.x), f64::from(kp.y), depth);

@@ -4,7 +4,7 @@
 use crate::map::{KeyFrameId, Map, MapPointId, PointDescriptor};
 
 use super::frame::Frame;
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 
 /// Keypoints needed to initialise (ORB-SLAM3's `StereoInitialization`
@@ -19,7 +19,7 @@ fn point_from_stereo(
     keyframe: KeyFrameId,
     frame: &Frame,
     i: usize,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<Option<MapPointId>, SlamError> {
     let (Some(position), Some(descriptor)) = (
         frame.unproject_world(i, rig),
@@ -42,7 +42,7 @@ fn point_from_stereo(
 pub(crate) fn initialise_map(
     frame: &mut Frame,
     map: &mut Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<Option<KeyFrameId>, SlamError> {
     if frame.len() <= MIN_INITIAL_KEYPOINTS || frame.stereo_count() < MIN_INITIAL_STEREO_POINTS {
         return Ok(None);
@@ -90,7 +90,7 @@ const MAX_MAPPING_QUEUE: usize = 3;
 pub(crate) fn needs_keyframe(
     frame: &Frame,
     map: &Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
     ctx: &KeyFrameContext,
 ) -> bool {
     let n_keyframes = map.keyframe_count();
@@ -148,7 +148,7 @@ pub(crate) fn needs_keyframe(
 pub(crate) fn insert_keyframe(
     frame: &mut Frame,
     map: &mut Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<(KeyFrameId, Vec<MapPointId>), SlamError> {
     let keyframe = map
         .add_keyframe(

@@ -8,7 +8,7 @@ use crate::map::{KeyFrameId, Map, MapPointId};
 use super::frame::Frame;
 use super::pose::refine_pose;
 use super::search::{match_projected, visible_in_frame, VisiblePoint};
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 
 /// Local keyframes at most (ORB-SLAM3: 80).
@@ -66,7 +66,7 @@ pub(crate) struct LocalMapOutcome {
 pub(crate) fn track_local_map(
     frame: &mut Frame,
     map: &Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
     recently_relocalised: bool,
 ) -> Result<LocalMapOutcome, SlamError> {
     let (keyframes, reference) = local_keyframes(frame, map);

@@ -1,13 +1,13 @@
 //! Stereo tracking (ORB-SLAM3's `Tracking` for rectified stereo).
 //!
-//! - [`StereoFrontend`]: extracts left and right features in parallel and
+//! - [`Frontend`]: extracts left and right features in parallel and
 //!   matches them along rows into a [`Frame`];
 //! - [`Tracker`]: stereo initialisation, the constant-velocity motion
 //!   model, the reference keyframe and relocalisation as fallbacks, local
 //!   map tracking, ORB-SLAM3's stereo keyframe decision and insertion;
 //!
 //! The driver that runs tracking with local mapping over an atlas of maps
-//! is [`crate::system::StereoSlam`]; tracking imports nothing from it.
+//! is [`crate::system::SlamSystem`]; tracking imports nothing from it.
 //!
 //! Bag-of-words place recognition is not used here: tracking the reference
 //! keyframe and relocalisation match descriptors by brute force. Which
@@ -28,7 +28,7 @@ mod search;
 mod tracker;
 
 pub use frame::Frame;
-pub use frontend::{StereoExtractors, StereoFeatures, StereoFrontend, StereoMatcher};
+pub use frontend::{Extractors, FrameBuilder, Frontend, SensorFeatures, SensorImages};
 pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use motion::MOTION_MODEL_RADIUS;
 pub(crate) use pose::refine_pose;

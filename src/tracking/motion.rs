@@ -8,7 +8,7 @@ use super::frame::Frame;
 use super::pose::refine_pose;
 use super::relocalise::pnp_ransac;
 use super::search::{match_descriptors, match_projected, VisiblePoint};
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 
 /// ORB-SLAM3's window for stereo (`th = 7`), in level-0 pixels per scale.
@@ -16,7 +16,7 @@ pub const MOTION_MODEL_RADIUS: f32 = 7.0;
 
 /// Projects the last frame's points with the current pose estimate,
 /// predicting each at the octave it was seen at.
-fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &StereoRig) -> Vec<VisiblePoint> {
+fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &CameraRig) -> Vec<VisiblePoint> {
     let mut out = Vec::new();
     for (i, point) in last.map_points.iter().enumerate() {
         let Some(id) = point.and_then(|p| map.resolve_point(p)) else {
@@ -71,7 +71,7 @@ pub(crate) fn track_with_motion_model(
     last: &Frame,
     velocity: &Se3,
     map: &Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<Option<MotionModelFit>, SlamError> {
     frame.pose_cw = velocity.compose(&last.pose_cw);
     frame.map_points.iter_mut().for_each(|p| *p = None);
@@ -107,7 +107,7 @@ pub(crate) fn track_reference_keyframe(
     last_pose: &Se3,
     reference: KeyFrameId,
     map: &Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<bool, SlamError> {
     let Ok(kf) = map.keyframe(reference) else {
         return Ok(false);

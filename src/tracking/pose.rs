@@ -5,7 +5,7 @@ use crate::optim::pose_only::{optimise_pose, PoseCorrespondence, PoseOnlyConfig}
 use crate::optim::reprojection::Observation;
 
 use super::frame::Frame;
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 
 /// The observation keypoint `i` of `frame` makes (stereo when it has a depth).
@@ -26,7 +26,7 @@ pub(crate) fn frame_observation(frame: &Frame, i: usize) -> Option<Observation> 
 pub(crate) fn refine_pose(
     frame: &mut Frame,
     map: &Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<usize, SlamError> {
     let mut indices = Vec::new();
     let mut correspondences = Vec::new();

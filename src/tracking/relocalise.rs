@@ -19,7 +19,7 @@ use crate::optim::Se3;
 use super::frame::Frame;
 use super::pose::refine_pose;
 use super::search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 
 /// Keyframes tried, newest first, without a candidate source.
@@ -65,7 +65,7 @@ pub(crate) fn pnp_ransac(
     frame: &Frame,
     map: &Map,
     matches: &[(usize, MapPointId)],
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Result<Option<PnpPose>, SlamError> {
     let mut object = Vector::<Point3f>::new();
     let mut image = Vector::<Point2f>::new();
@@ -124,7 +124,7 @@ fn widen_by_projection(
     frame: &mut Frame,
     map: &Map,
     keyframe: KeyFrameId,
-    rig: &StereoRig,
+    rig: &CameraRig,
     mut inliers: usize,
 ) -> Result<usize, SlamError> {
     for (radius, at_least) in [(10.0, 10), (3.0, 30)] {
@@ -151,7 +151,7 @@ fn widen_by_projection(
 /// ORB-SLAM3's `Relocalization` without bag-of-words: tries the
 /// [`MAX_SCANNED_KEYFRAMES`] newest keyframes; accepts the first pose with
 /// at least 50 inliers.
-pub(crate) fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Result<bool, SlamError> {
+pub(crate) fn relocalise(frame: &mut Frame, map: &Map, rig: &CameraRig) -> Result<bool, SlamError> {
     relocalise_among(frame, map, rig, &newest_keyframes(map))
 }
 
@@ -161,7 +161,7 @@ pub(crate) fn relocalise(frame: &mut Frame, map: &Map, rig: &StereoRig) -> Resul
 pub(crate) fn relocalise_with(
     frame: &mut Frame,
     map: &Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
     source: Option<&dyn RelocalisationCandidates>,
 ) -> Result<bool, SlamError> {
     match source.and_then(|s| s.candidates(frame, map)) {
@@ -177,7 +177,7 @@ pub(crate) fn relocalise_with(
 fn relocalise_among(
     frame: &mut Frame,
     map: &Map,
-    rig: &StereoRig,
+    rig: &CameraRig,
     candidates: &[KeyFrameId],
 ) -> Result<bool, SlamError> {
     let mut tried = BTreeSet::new();

@@ -11,7 +11,7 @@ use crate::matching::{
 use crate::optim::LieGroup;
 
 use super::frame::Frame;
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 
 /// A map point predicted to be visible in the frame.
@@ -34,7 +34,7 @@ pub(crate) fn visible_in_frame(
     map: &Map,
     id: MapPointId,
     frame: &Frame,
-    rig: &StereoRig,
+    rig: &CameraRig,
 ) -> Option<VisiblePoint> {
     let p = map.map_point(id).ok()?;
     let pc = frame.pose_cw.transform_point(&p.position);

@@ -11,7 +11,7 @@ use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameC
 use super::local_map::track_local_map;
 use super::motion::{track_reference_keyframe, track_with_motion_model};
 use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 
 /// Where tracking stands.
@@ -58,7 +58,7 @@ pub struct TrackOutcome {
 /// Tracks frames against a map.
 #[derive(Debug)]
 pub struct Tracker {
-    rig: StereoRig,
+    rig: CameraRig,
     state: TrackingState,
     last_frame: Option<Frame>,
     /// The last frame's pose relative to its reference keyframe, to follow BA updates.
@@ -92,7 +92,7 @@ const MIN_LOCAL_MAP_INLIERS: usize = 30;
 
 impl Tracker {
     /// A tracker for `rig`, not yet initialised.
-    pub fn new(rig: StereoRig) -> Self {
+    pub fn new(rig: CameraRig) -> Self {
         Self {
             rig,
             state: TrackingState::NotInitialised,
@@ -161,7 +161,7 @@ impl Tracker {
     }
 
     /// The rig.
-    pub fn rig(&self) -> &StereoRig {
+    pub fn rig(&self) -> &CameraRig {
         &self.rig
     }
 

@@ -15,14 +15,14 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion, Vector3};
 use opencv::core::Mat;
 use opencv::imgcodecs;
 use opencv::prelude::*;
-use spslam::camera::StereoRig;
+use spslam::camera::CameraRig;
 use spslam::dataset::{CameraCalibration, StereoRectifier};
 use spslam::eval::Trajectory;
 use spslam::features::{GrayImage, SuperPointExtractor};
 use spslam::map::{KeyFrameId, Map, PointDescriptor};
 use spslam::optim::{LieGroup, Se3};
 use spslam::settings::{SlamSettings, DEFAULT_SUPERPOINT_LEVELS};
-use spslam::tracking::{StereoExtractors, StereoFrontend, StereoMatcher};
+use spslam::tracking::{Extractors, FrameBuilder, Frontend, SensorImages};
 
 /// The pair folder under the shared data root.
 pub const PAIR_DIR: &str = "euroc/V1_01_easy_loop_pairs";
@@ -128,7 +128,7 @@ fn read_gray(path: &Path) -> Mat {
 /// The rectifier, the rig and `T_body_rect` (body ← rectified left camera).
 pub struct EurocRig {
     pub rectifier: StereoRectifier,
-    pub rig: StereoRig,
+    pub rig: CameraRig,
     pub settings: SlamSettings,
     pub t_body_rect: Isometry3<f64>,
 }
@@ -159,7 +159,7 @@ pub fn euroc_rig(dir: &Path) -> EurocRig {
     );
     settings.camera.fps = 20.0;
     let (w, h) = rectifier.image_size();
-    let rig = StereoRig::from_settings(&settings, w as usize, h as usize)
+    let rig = CameraRig::from_settings(&settings, w as usize, h as usize)
         .unwrap_or_else(|e| panic!("rig: {e}"));
     let r1 = rectifier.left_rotation();
     let t_body_cam0 = Se3::from_matrix(&cam0.t_bs).to_isometry();
@@ -197,7 +197,7 @@ pub fn load(rig: &EurocRig, f: &PairFrame) -> (GrayImage, GrayImage) {
 
 /// Two SuperPoint extractors (`spslam run`'s defaults for this rig, one
 /// thread each) and the stereo matcher.
-pub fn frontend(rig: &EurocRig) -> (StereoExtractors, StereoMatcher) {
+pub fn frontend(rig: &EurocRig) -> (Extractors, FrameBuilder) {
     let config = rig
         .settings
         .extractor
@@ -208,7 +208,7 @@ pub fn frontend(rig: &EurocRig) -> (StereoExtractors, StereoMatcher) {
                 .unwrap_or_else(|e| panic!("cannot create the extractor: {e}")),
         )
     };
-    StereoFrontend::new(sp(), sp(), &rig.rig).into_parts()
+    Frontend::new(sp(), sp(), &rig.rig).into_parts()
 }
 
 /// Adds frame `f` as a keyframe at `pose_cw` with one new map point per
@@ -216,24 +216,22 @@ pub fn frontend(rig: &EurocRig) -> (StereoExtractors, StereoMatcher) {
 /// its keypoints and its new points.
 pub fn add_stereo_keyframe(
     map: &mut Map,
-    (extractors, matcher): &mut (StereoExtractors, StereoMatcher),
+    (extractors, matcher): &mut (Extractors, FrameBuilder),
     rig: &EurocRig,
     index: usize,
     f: &PairFrame,
     pose_cw: Se3,
 ) -> (KeyFrameId, usize, usize) {
     let (l, r) = load(rig, f);
+    let images = SensorImages::Stereo {
+        left: l.view(),
+        right: r.view(),
+    };
     let features = extractors
-        .extract(index, l.view(), r.view())
+        .extract(index, images)
         .unwrap_or_else(|e| panic!("extraction: {e}"));
     let (mut frame, _) = matcher
-        .match_frame(
-            index,
-            f.timestamp(),
-            features,
-            (l.view(), r.view()),
-            &rig.rig,
-        )
+        .build_frame(index, f.timestamp(), features, images, &rig.rig)
         .unwrap_or_else(|e| panic!("stereo matching: {e}"));
     frame.pose_cw = pose_cw;
     let kf = map
@@ -292,7 +290,7 @@ pub struct LoopPairMap {
 /// Builds the [`LoopPairMap`] with the frontend `fe`; keyframe indices 0
 /// (A) and 1 (B).
 pub fn build_loop_map(
-    fe: &mut (StereoExtractors, StereoMatcher),
+    fe: &mut (Extractors, FrameBuilder),
     rig: &EurocRig,
     matched: &PairFrame,
     query: &PairFrame,
@@ -307,7 +305,7 @@ pub fn build_loop_map(
 /// [`add_stereo_keyframe`] returning a [`PairKeyframe`].
 pub fn add_keyframe(
     map: &mut Map,
-    fe: &mut (StereoExtractors, StereoMatcher),
+    fe: &mut (Extractors, FrameBuilder),
     rig: &EurocRig,
     index: usize,
     f: &PairFrame,

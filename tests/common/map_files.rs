@@ -4,13 +4,13 @@
 
 use spslam::dataset::synthetic::SceneName;
 use spslam::settings::ExtractorSettings;
-use spslam::system::StereoSlam;
-use spslam::tracking::StereoFrontend;
+use spslam::system::SlamSystem;
+use spslam::tracking::Frontend;
 
 use super::synthetic_slam::{images, orb_slam, rig_of, small_sequence};
 
 /// ORB stereo SLAM over `frames` frames of the loop scene, finished.
-pub fn orb_system(frames: usize) -> StereoSlam {
+pub fn orb_system(frames: usize) -> SlamSystem {
     let sequence = small_sequence(SceneName::Loop, frames);
     let mut slam = orb_slam(&sequence);
     run(&mut slam, &sequence);
@@ -19,7 +19,7 @@ pub fn orb_system(frames: usize) -> StereoSlam {
 
 /// SuperPoint (int8, one level, `features` keypoints) stereo SLAM over
 /// `frames` frames of the loop scene, finished.
-pub fn superpoint_system(frames: usize, features: usize) -> StereoSlam {
+pub fn superpoint_system(frames: usize, features: usize) -> SlamSystem {
     let sequence = small_sequence(SceneName::Loop, frames);
     let rig = rig_of(&sequence);
     let settings = ExtractorSettings {
@@ -28,12 +28,12 @@ pub fn superpoint_system(frames: usize, features: usize) -> StereoSlam {
     };
     let config = settings.superpoint_config(1, 1);
     let sp = || Box::new(super::extractor(config.clone()));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(sp(), sp(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     run(&mut slam, &sequence);
     slam
 }
 
-fn run(slam: &mut StereoSlam, sequence: &spslam::dataset::synthetic::SyntheticSequence) {
+fn run(slam: &mut SlamSystem, sequence: &spslam::dataset::synthetic::SyntheticSequence) {
     for i in 0..sequence.len() {
         let (t, l, r) = images(sequence, i);
         slam.process(i, t, l.view(), r.view())

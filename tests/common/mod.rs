@@ -6,6 +6,7 @@ use std::path::PathBuf;
 pub mod map_files;
 pub mod pose_graph_problems;
 pub mod rng;
+pub mod sensor_runs;
 pub mod synthetic_ba;
 pub mod synthetic_slam;
 
@@ -154,7 +155,7 @@ pub fn untracked(records: &[spslam::system::FrameRecord]) -> Vec<usize> {
 /// Switches loop closing on with the default codebook for extractor `config`
 /// (`SPSLAM_CODEBOOK`, else `models/vlad_k64.spvlad` for int8 and
 /// `models/vlad_k64_fp32.spvlad` for fp32), as `spslam run` does.
-pub fn enable_loop_closing(slam: &mut spslam::system::StereoSlam, config: &ExtractorConfig) {
+pub fn enable_loop_closing(slam: &mut spslam::system::SlamSystem, config: &ExtractorConfig) {
     let path = spslam::place::default_codebook_for(config);
     let codebook = spslam::place::Codebook::load_for(&path, config)
         .unwrap_or_else(|e| panic!("codebook {}: {e}", path.display()));

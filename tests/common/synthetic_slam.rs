@@ -2,12 +2,12 @@
 //! 480×360 (focal 0.75× the default): one place to build the sequence, the
 //! rig and the system, shared by the SLAM integration tests.
 
-use spslam::camera::StereoRig;
+use spslam::camera::CameraRig;
 use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticSequence};
 use spslam::features::{GrayImage, OrbConfig, OrbExtractor};
 use spslam::settings::SlamSettings;
-use spslam::system::StereoSlam;
-use spslam::tracking::StereoFrontend;
+use spslam::system::SlamSystem;
+use spslam::tracking::Frontend;
 
 /// `frames` frames of `scene` at the tests' 480×360 size.
 pub fn small_sequence(scene: SceneName, frames: usize) -> SyntheticSequence {
@@ -20,19 +20,19 @@ pub fn small_sequence(scene: SceneName, frames: usize) -> SyntheticSequence {
 }
 
 /// The sequence's rig with default settings.
-pub fn rig_of(sequence: &SyntheticSequence) -> StereoRig {
+pub fn rig_of(sequence: &SyntheticSequence) -> CameraRig {
     let cam = *sequence.camera();
     let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
-    StereoRig::from_settings(&settings, cam.width, cam.height).unwrap_or_else(|e| panic!("{e}"))
+    CameraRig::from_settings(&settings, cam.width, cam.height).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// An ORB stereo SLAM system for the sequence, mapping inline, with the
 /// map's invariants checked after every local-mapping step.
-pub fn orb_slam(sequence: &SyntheticSequence) -> StereoSlam {
+pub fn orb_slam(sequence: &SyntheticSequence) -> SlamSystem {
     let rig = rig_of(sequence);
     let orb =
         || Box::new(OrbExtractor::new(OrbConfig::default()).unwrap_or_else(|e| panic!("{e}")));
-    let mut slam = StereoSlam::new(rig, StereoFrontend::new(orb(), orb(), &rig));
+    let mut slam = SlamSystem::new(rig, Frontend::new(orb(), orb(), &rig));
     if let Some(mapper) = slam.mapper_mut() {
         mapper.check_invariants = true;
     }

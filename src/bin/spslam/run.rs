@@ -23,7 +23,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use spslam::camera::StereoRig;
+use spslam::camera::CameraRig;
 use spslam::dataset::StereoFrame;
 use spslam::features::{
     AnmsMethod, Device, FeatureExtractor, OrbConfig, OrbExtractor, Precision, SuperPointExtractor,
@@ -32,8 +32,8 @@ use spslam::loop_closing::LoopThresholds;
 use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::SlamSettings;
 use spslam::storage::{crc32, DescriptorPrecision, SaveOptions};
-use spslam::system::{LoadedMapUse, MapProvenance, StereoSlam};
-use spslam::tracking::StereoFrontend;
+use spslam::system::{LoadedMapUse, MapProvenance, SlamSystem};
+use spslam::tracking::Frontend;
 
 use frame_loop::{FrameLoop, RunEnd};
 use output::RunOutputs;
@@ -209,15 +209,15 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         bail!("the sequence has no frames");
     }
     let size = source.first_size(&frames)?;
-    let rig = StereoRig::from_settings(&settings, size.0, size.1)?;
+    let rig = CameraRig::from_settings(&settings, size.0, size.1)?;
     let levels = args.levels.unwrap_or(match args.extractor {
         ExtractorChoice::Superpoint => settings.extractor.superpoint_levels,
         ExtractorChoice::Orb => settings.extractor.n_levels,
     });
     let (left, right) = extractors(args.extractor, &settings, levels)?;
     let inference = left.inference_summary();
-    let frontend = StereoFrontend::new(left, right, &rig);
-    let mut slam = StereoSlam::new(rig, frontend);
+    let frontend = Frontend::new(left, right, &rig);
+    let mut slam = SlamSystem::new(rig, frontend);
     if let Some(mapper) = slam.mapper_mut() {
         mapper.bundle_adjustment = !args.no_local_ba;
         mapper.keyframe_culling = !args.no_keyframe_culling;

@@ -124,6 +124,10 @@ impl FeatureExtractor for OrbExtractor {
         &self.tables
     }
 
+    fn descriptor_kind(&self) -> crate::features::DescriptorKind {
+        crate::features::DescriptorKind::Binary
+    }
+
     fn name(&self) -> &str {
         "orb"
     }

@@ -21,12 +21,19 @@ pub struct PeriodicGuard {
 
 impl PeriodicGuard {
     /// The guard for SuperPoint's 8-px descriptor cell.
-    pub const SUPERPOINT: Self = Self {
-        period: 8.0,
-        tolerance: 1.5,
-        descriptor_ratio: 0.6,
-        sad_depth_ratio: 0.75,
-    };
+    pub const SUPERPOINT: Self = Self::for_cell(8.0);
+
+    /// The guard for an extractor whose descriptors repeat every `cell`
+    /// level pixels: SuperPoint's values, the tolerance scaled with the
+    /// cell (1.5 px for 8).
+    pub const fn for_cell(cell: f32) -> Self {
+        Self {
+            period: cell,
+            tolerance: cell * (1.5 / 8.0),
+            descriptor_ratio: 0.6,
+            sad_depth_ratio: 0.75,
+        }
+    }
 }
 
 /// Parameters of [`match_stereo`](super::match_stereo).

@@ -10,7 +10,8 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use indicatif::ProgressBar;
 use spslam::dataset::StereoFrame;
 use spslam::error::SlamError;
-use spslam::system::StereoSlam;
+use spslam::system::SlamSystem;
+use spslam::tracking::SensorImages;
 
 use std::sync::mpsc::Receiver;
 
@@ -96,7 +97,7 @@ impl FrameLoop<'_> {
     /// recorded in `slam` as lost and listed in `unreadable`.
     pub fn run(
         &self,
-        slam: &mut StereoSlam,
+        slam: &mut SlamSystem,
         prepared: &Receiver<Prepared>,
         unreadable: &mut Vec<UnreadableFrame>,
     ) -> RunEnd {
@@ -156,7 +157,7 @@ impl FrameLoop<'_> {
     /// Tracks one prepared frame.
     fn step(
         &self,
-        slam: &mut StereoSlam,
+        slam: &mut SlamSystem,
         index: usize,
         frame: &StereoFrame,
         prepared: Result<PreparedFrame, PrepareError>,
@@ -173,8 +174,10 @@ impl FrameLoop<'_> {
                 index,
                 frame.timestamp,
                 prepared.features,
-                prepared.left.view(),
-                prepared.right.view(),
+                SensorImages::Stereo {
+                    left: prepared.left.view(),
+                    right: prepared.right.view(),
+                },
                 prepared.extraction_ms,
             )
             .map(|record| (record.state, record.inliers))

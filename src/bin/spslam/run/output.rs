@@ -10,7 +10,7 @@ use spslam::loop_closing::GlobalBaSummary;
 use spslam::optim::Se3;
 use spslam::settings::SlamSettings;
 use spslam::system::{
-    FrameRecord, LoopRecord, MergeRecord, RejectedLoopRecord, SlamSummary, StereoSlam,
+    FrameRecord, LoopRecord, MergeRecord, RejectedLoopRecord, SlamSummary, SlamSystem,
 };
 
 use super::evaluation::{evaluate_run, Drift};
@@ -105,7 +105,7 @@ fn status_line(end: &RunEnd, processed: usize, total: usize, unreadable: usize) 
 }
 
 /// The accepted loops as pairs of frame timestamps, for the plot.
-fn loop_links(slam: &StereoSlam) -> Vec<(f64, f64)> {
+fn loop_links(slam: &SlamSystem) -> Vec<(f64, f64)> {
     let time = |frame: usize| {
         slam.records()
             .iter()
@@ -223,7 +223,7 @@ impl RunOutputs<'_> {
     /// (empty when everything was written).
     pub fn write(
         &self,
-        slam: &StereoSlam,
+        slam: &SlamSystem,
         end: &RunEnd,
         unreadable: &[UnreadableFrame],
     ) -> Vec<anyhow::Error> {

@@ -18,7 +18,7 @@ use std::time::Instant;
 use spslam::dataset::StereoFrame;
 use spslam::error::SlamError;
 use spslam::features::GrayImage;
-use spslam::tracking::{StereoExtractors, StereoFeatures};
+use spslam::tracking::{Extractors, SensorFeatures, SensorImages};
 
 use super::source::{Source, Unreadable};
 
@@ -33,7 +33,7 @@ pub struct PreparedFrame {
     /// The right image.
     pub right: GrayImage,
     /// Both images' features.
-    pub features: StereoFeatures,
+    pub features: SensorFeatures,
     /// Wall time of the extraction (both images, in parallel), in ms.
     pub extraction_ms: f64,
 }
@@ -71,7 +71,7 @@ pub fn with_extraction_stage<R>(
     source: &Source,
     frames: &[StereoFrame],
     size: (usize, usize),
-    extractors: StereoExtractors,
+    extractors: Extractors,
     consume: impl FnOnce(&Receiver<Prepared>) -> R,
 ) -> R {
     let (sender, receiver) = sync_channel(QUEUE_DEPTH);
@@ -87,7 +87,7 @@ fn prepare_all(
     source: &Source,
     frames: &[StereoFrame],
     size: (usize, usize),
-    mut extractors: StereoExtractors,
+    mut extractors: Extractors,
     sender: SyncSender<Prepared>,
 ) {
     for (index, frame) in frames.iter().enumerate() {
@@ -111,14 +111,20 @@ fn prepare(
     frame: &StereoFrame,
     size: (usize, usize),
     index: usize,
-    extractors: &mut StereoExtractors,
+    extractors: &mut Extractors,
 ) -> Result<PreparedFrame, PrepareError> {
     let (left, right) = source
         .load(frame, Some(size))
         .map_err(PrepareError::Unreadable)?;
     let start = Instant::now();
     let features = extractors
-        .extract(index, left.view(), right.view())
+        .extract(
+            index,
+            SensorImages::Stereo {
+                left: left.view(),
+                right: right.view(),
+            },
+        )
         .map_err(PrepareError::Extraction)?;
     Ok(PreparedFrame {
         left,

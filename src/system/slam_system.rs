@@ -1,13 +1,13 @@
 //! The stereo SLAM driver: front end, tracking and local mapping over the
 //! atlas. Local mapping runs either inline, right after each new keyframe
 //! (deterministic: tests and benchmarks), or on its own thread
-//! ([`StereoSlam::spawn_mapping_thread`]) as in ORB-SLAM3, fed keyframes
+//! ([`SlamSystem::spawn_mapping_thread`]) as in ORB-SLAM3, fed keyframes
 //! through a channel while the next frame is extracted and tracked.
 
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use crate::camera::StereoRig;
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 use crate::features::GrayImageView;
 use crate::loop_closing::{apply_global_ba, GlobalBaSummary, SolvedGlobalBa};
@@ -15,7 +15,7 @@ use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
 use crate::tracking::{
-    StereoExtractors, StereoFeatures, StereoFrontend, StereoMatcher, Tracker, TrackingMethod,
+    Extractors, FrameBuilder, Frontend, SensorFeatures, SensorImages, Tracker, TrackingMethod,
     TrackingState,
 };
 
@@ -59,10 +59,10 @@ pub(super) enum Mapping {
 /// caller's thread between frames, with local mapping paused (its queue
 /// finished first), as ORB-SLAM3's `RequestStop`; the global BA that
 /// follows runs on its own thread.
-pub struct StereoSlam {
-    pub(super) rig: StereoRig,
-    extractors: Option<StereoExtractors>,
-    matcher: StereoMatcher,
+pub struct SlamSystem {
+    pub(super) rig: CameraRig,
+    extractors: Option<Extractors>,
+    builder: FrameBuilder,
     pub(super) tracker: Tracker,
     pub(super) mapping: Mapping,
     pub(super) atlas: Atlas,
@@ -75,14 +75,14 @@ pub struct StereoSlam {
     global_ba_runs: Vec<GlobalBaSummary>,
 }
 
-impl StereoSlam {
+impl SlamSystem {
     /// A system with an empty atlas (one empty map), mapping inline.
-    pub fn new(rig: StereoRig, frontend: StereoFrontend) -> Self {
-        let (extractors, matcher) = frontend.into_parts();
+    pub fn new(rig: CameraRig, frontend: Frontend) -> Self {
+        let (extractors, builder) = frontend.into_parts();
         Self {
             rig,
             extractors: Some(extractors),
-            matcher,
+            builder,
             tracker: Tracker::new(rig),
             mapping: Mapping::Inline(LocalMapper::new(rig)),
             atlas: Atlas::new(),
@@ -233,25 +233,24 @@ impl StereoSlam {
         self.spawn_loop_closing_thread()
     }
 
-    /// Extracts a stereo pair's features (left and right in parallel)
-    /// without tracking them; see [`Self::process_features`].
+    /// Extracts a frame's features (a stereo pair's in parallel) without
+    /// tracking them; see [`Self::process_features`].
     pub fn extract(
         &mut self,
         index: usize,
-        left: GrayImageView<'_>,
-        right: GrayImageView<'_>,
-    ) -> Result<StereoFeatures, SlamError> {
+        images: SensorImages<'_>,
+    ) -> Result<SensorFeatures, SlamError> {
         self.extractors
             .as_mut()
             .ok_or(SlamError::ExtractorsDetached { frame: index })?
-            .extract(index, left, right)
+            .extract(index, images)
     }
 
     /// Hands the extractors over (once; `None` afterwards), for a pipeline
     /// that extracts the next frame on its own thread while this one is
     /// tracked. From then on [`Self::process`] and [`Self::extract`] fail
     /// with [`SlamError::ExtractorsDetached`]; use [`Self::process_features`].
-    pub fn detach_extractors(&mut self) -> Option<StereoExtractors> {
+    pub fn detach_extractors(&mut self) -> Option<Extractors> {
         self.extractors.take()
     }
 
@@ -365,7 +364,7 @@ impl StereoSlam {
 
     /// The extractor's name.
     pub fn extractor_name(&self) -> &str {
-        self.matcher.extractor_name()
+        self.builder.extractor_name()
     }
 
     /// The frames processed so far.
@@ -373,7 +372,7 @@ impl StereoSlam {
         &self.records
     }
 
-    /// Processes one rectified stereo pair.
+    /// Processes one rectified stereo pair (see [`Self::process_images`]).
     pub fn process(
         &mut self,
         index: usize,
@@ -381,10 +380,20 @@ impl StereoSlam {
         left: GrayImageView<'_>,
         right: GrayImageView<'_>,
     ) -> Result<&FrameRecord, SlamError> {
+        self.process_images(index, timestamp, SensorImages::Stereo { left, right })
+    }
+
+    /// Processes one frame of the system's sensor.
+    pub fn process_images(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        images: SensorImages<'_>,
+    ) -> Result<&FrameRecord, SlamError> {
         let start = Instant::now();
-        let features = self.extract(index, left, right)?;
+        let features = self.extract(index, images)?;
         let extraction_ms = start.elapsed().as_secs_f64() * 1e3;
-        self.process_features(index, timestamp, features, left, right, extraction_ms)
+        self.process_features(index, timestamp, features, images, extraction_ms)
     }
 
     /// Records an input frame that could not be read (a missing or corrupt
@@ -418,25 +427,24 @@ impl StereoSlam {
         &self.records[last]
     }
 
-    /// Processes a stereo pair whose features were extracted already
+    /// Processes a frame whose features were extracted already
     /// (benchmarks time everything but extraction this way);
     /// `extraction_ms` goes into the record.
     pub fn process_features(
         &mut self,
         index: usize,
         timestamp: f64,
-        features: StereoFeatures,
-        left: GrayImageView<'_>,
-        right: GrayImageView<'_>,
+        features: SensorFeatures,
+        images: SensorImages<'_>,
         extraction_ms: f64,
     ) -> Result<&FrameRecord, SlamError> {
         self.poll_mapping()?;
         if self.tracker.should_start_new_map(index) {
             self.start_new_map(index)?;
         }
-        let (frame, stereo_ms) =
-            self.matcher
-                .match_frame(index, timestamp, features, (left, right), &self.rig)?;
+        let (frame, stereo_ms) = self
+            .builder
+            .build_frame(index, timestamp, features, images, &self.rig)?;
         let stereo_points = frame.stereo_count();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),
