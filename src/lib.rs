@@ -4,6 +4,7 @@
 //! - [`features`]: the SuperPoint + ANMS feature extractor (ONNX Runtime), with
 //!   ORB-SLAM3's pyramid and scale-table semantics, and OpenCV's ORB as a reference;
 //! - `ffi`: a C ABI over the extractor (see `include/spslam.h`);
+//! - [`geometry`]: monocular two-view reconstruction (ORB-SLAM3's `TwoViewReconstruction`);
 //! - the SLAM core, bottom up: [`map`], [`camera`], [`tracking`] and
 //!   [`mapping`] (which never import each other's layers above), and
 //!   [`system`], which drives them over an atlas of maps;
@@ -21,6 +22,7 @@ pub mod error;
 pub mod eval;
 pub mod features;
 pub mod ffi;
+pub mod geometry;
 pub mod loop_closing;
 pub mod map;
 pub mod mapping;

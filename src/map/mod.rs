@@ -416,6 +416,26 @@ impl Map {
         Ok(())
     }
 
+    /// The median depth of the points a live keyframe observes, in its
+    /// camera (ORB-SLAM3's `KeyFrame::ComputeSceneMedianDepth`); `None`
+    /// without a point in front of it.
+    pub fn median_scene_depth(&self, keyframe: KeyFrameId) -> Option<f64> {
+        let kf = self.keyframes.get(&keyframe)?;
+        let pose = kf.pose_cw();
+        let mut depths: Vec<f64> = kf
+            .observed_points()
+            .filter_map(|(_, p)| self.points.get(&p))
+            .map(|p| pose.transform_point(&p.position).z)
+            .filter(|z| z.is_finite() && *z > 0.0)
+            .collect();
+        if depths.is_empty() {
+            return None;
+        }
+        let mid = depths.len() / 2;
+        let (_, median, _) = depths.select_nth_unstable_by(mid, f64::total_cmp);
+        Some(*median)
+    }
+
     /// The pose `T_cw` of a keyframe, live or culled (through its parents).
     pub fn pose_cw_of(&self, keyframe: KeyFrameId) -> Result<Se3> {
         let mut relative = Se3::identity();

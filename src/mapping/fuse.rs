@@ -131,7 +131,13 @@ pub(crate) fn plan_fusion(
     rig: &CameraRig,
 ) -> Vec<FusionCandidate> {
     let mut targets: BTreeSet<KeyFrameId> = BTreeSet::new();
-    for n in map.best_covisible(keyframe, 10) {
+    // ORB-SLAM3's `SearchInNeighbors`: 10 neighbours, 30 for monocular.
+    let neighbours = if rig.sensor == crate::camera::Sensor::Monocular {
+        30
+    } else {
+        10
+    };
+    for n in map.best_covisible(keyframe, neighbours) {
         targets.insert(n);
         for m in map.best_covisible(n, 5) {
             targets.insert(m);

@@ -31,6 +31,8 @@ use triangulate::{apply_new_points, plan_new_points};
 
 /// Weighted observations a recent stereo point needs after two keyframes (ORB-SLAM3: 3).
 const MIN_STEREO_OBSERVATIONS: usize = 3;
+/// The same for a monocular point (ORB-SLAM3's `MapPointCulling`: 2).
+const MIN_MONO_OBSERVATIONS: usize = 2;
 
 /// What local mapping did for one keyframe.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
@@ -121,6 +123,15 @@ fn write(map: &SharedMap) -> Result<RwLockWriteGuard<'_, Map>, SlamError> {
 }
 
 impl LocalMapper {
+    /// Observations a recent point needs to survive, by sensor.
+    fn min_point_observations(&self) -> usize {
+        if self.rig.sensor == crate::camera::Sensor::Monocular {
+            MIN_MONO_OBSERVATIONS
+        } else {
+            MIN_STEREO_OBSERVATIONS
+        }
+    }
+
     /// A mapper for `rig`.
     pub fn new(rig: CameraRig) -> Self {
         Self {
@@ -198,8 +209,9 @@ impl LocalMapper {
             refresh_observed_points(&mut map, keyframe);
             self.recent_points.extend_from_slice(created);
             map.update_connections(keyframe);
+            let min_observations = self.min_point_observations();
             let culled: PointCullingReport =
-                map.cull_recent_points(&mut self.recent_points, keyframe, MIN_STEREO_OBSERVATIONS);
+                map.cull_recent_points(&mut self.recent_points, keyframe, min_observations);
             summary.points_culled = culled.low_found_ratio + culled.too_few_observations;
             self.checked(&map, "keyframe processing")?;
         }
@@ -264,7 +276,11 @@ impl LocalMapper {
     /// ORB-SLAM3's `KeyFrameCulling` over the keyframe's covisible ones.
     fn cull_keyframes(&self, map: &mut Map, keyframe: KeyFrameId) -> Result<usize, SlamError> {
         let candidates = map.best_covisible(keyframe, usize::MAX);
-        let redundant = map.redundant_keyframes(&candidates, Some(self.rig.close_depth));
+        // ORB-SLAM3's `KeyFrameCulling` counts only close stereo points,
+        // and every point for monocular.
+        let close_depth =
+            (self.rig.sensor != crate::camera::Sensor::Monocular).then_some(self.rig.close_depth);
+        let redundant = map.redundant_keyframes(&candidates, close_depth);
         let mut culled = 0;
         for kf in redundant {
             if kf != keyframe {

@@ -4,7 +4,7 @@
 
 use nalgebra::{Matrix3, Matrix4, Vector3};
 
-use crate::camera::CameraRig;
+use crate::camera::{CameraRig, Sensor};
 use crate::error::{MapContext, SlamError};
 use crate::features::DescriptorSet;
 use crate::map::{FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor};
@@ -15,6 +15,8 @@ use crate::optim::{LieGroup, Se3};
 
 /// Neighbours triangulated against (ORB-SLAM3: 10 for stereo).
 const NEIGHBOURS: usize = 10;
+/// Monocular keyframes triangulate against more (ORB-SLAM3: `nn = 30`).
+const NEIGHBOURS_MONOCULAR: usize = 30;
 /// Ratio test for triangulation matches (ORB-SLAM3: 0.6).
 const RATIO: f32 = 0.6;
 
@@ -274,11 +276,24 @@ pub(crate) fn plan_new_points(map: &Map, keyframe: KeyFrameId, rig: &CameraRig) 
             .unwrap_or(1.2),
     );
     let mut planned = Vec::new();
-    for neighbour in map.best_covisible(keyframe, NEIGHBOURS) {
+    let neighbours = if rig.sensor == Sensor::Monocular {
+        NEIGHBOURS_MONOCULAR
+    } else {
+        NEIGHBOURS
+    };
+    for neighbour in map.best_covisible(keyframe, neighbours) {
         let Some(v2) = view(map, neighbour) else {
             continue;
         };
-        if (v2.center - v1.center).norm() < rig.baseline {
+        let baseline = (v2.center - v1.center).norm();
+        if rig.sensor == Sensor::Monocular {
+            // ORB-SLAM3's `CreateNewMapPoints`: a monocular pair needs a
+            // baseline of 1 % of the neighbour's median scene depth.
+            let median_depth = map.median_scene_depth(neighbour);
+            if median_depth.is_none_or(|d| baseline / d < 0.01) {
+                continue;
+            }
+        } else if baseline < rig.baseline {
             continue;
         }
         let mut used = Vec::new();

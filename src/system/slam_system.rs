@@ -471,6 +471,9 @@ impl SlamSystem {
                 }
             }
         }
+        if let Some((earlier, kf)) = outcome.earlier_keyframe {
+            self.record_earlier_keyframe(earlier, map_index, kf);
+        }
         let mapping_ms = mapping.as_ref().map_or(0.0, |m| m.elapsed_ms);
         self.records.push(FrameRecord {
             index,
@@ -500,6 +503,22 @@ impl SlamSystem {
         }
         let last = self.records.len() - 1;
         Ok(&self.records[last])
+    }
+
+    /// A monocular initialisation made a keyframe of an earlier frame:
+    /// its record gets that pose.
+    fn record_earlier_keyframe(&mut self, index: usize, map: MapIndex, keyframe: KeyFrameId) {
+        if let Some(record) = self.records.iter_mut().rev().find(|r| r.index == index) {
+            record.state = TrackingState::Ok;
+            record.method = TrackingMethod::Initialisation;
+            record.keyframe = true;
+            record.map = map;
+            record.relative_pose = Some(RelativePose {
+                map,
+                keyframe,
+                pose: Se3::identity(),
+            });
+        }
     }
 
     /// The tracking state now.

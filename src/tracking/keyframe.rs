@@ -4,7 +4,7 @@
 use crate::map::{KeyFrameId, Map, MapPointId, PointDescriptor};
 
 use super::frame::Frame;
-use crate::camera::CameraRig;
+use crate::camera::{CameraRig, Sensor};
 use crate::error::{MapContext, SlamError};
 
 /// Keypoints needed to initialise (ORB-SLAM3's `StereoInitialization`
@@ -86,7 +86,8 @@ pub(crate) struct KeyFrameContext {
 /// wait (ORB-SLAM3, stereo: `KeyframesInQueue() < 3`).
 const MAX_MAPPING_QUEUE: usize = 3;
 
-/// ORB-SLAM3's `NeedNewKeyFrame` for stereo (without its BA interruption).
+/// ORB-SLAM3's `NeedNewKeyFrame` for stereo, RGB-D and monocular (without
+/// its BA interruption).
 pub(crate) fn needs_keyframe(
     frame: &Frame,
     map: &Map,
@@ -99,7 +100,16 @@ pub(crate) fn needs_keyframe(
             return false;
         }
     }
-    let min_observations = if n_keyframes <= 2 { 2 } else { 3 };
+    // ORB-SLAM3 counts the reference's points seen by 3 keyframes (2 in a
+    // map of two). A monocular point is born with 2 observations, so that
+    // count leaves out every point of the last keyframe; through a turn
+    // the keyframes then come too late (the synthetic block loop lost
+    // tracking at its third corner). Monocular counts points seen twice.
+    let min_observations = if n_keyframes <= 2 || rig.sensor == Sensor::Monocular {
+        2
+    } else {
+        3
+    };
     let reference_matches = map.keyframe(ctx.reference).map_or(0, |kf| {
         kf.observed_points()
             .filter(|(_, p)| {
@@ -119,12 +129,21 @@ pub(crate) fn needs_keyframe(
         }
     }
     let need_close = tracked_close < 100 && untracked_close > 70;
-    let ref_ratio = if n_keyframes < 2 { 0.4 } else { 0.75 };
+    // ORB-SLAM3: monocular keyframes come when fewer than 90 % of the
+    // reference's points are tracked, and only while mapping is idle.
+    let mono = rig.sensor == Sensor::Monocular;
+    let ref_ratio = if mono {
+        0.9
+    } else if n_keyframes < 2 {
+        0.4
+    } else {
+        0.75
+    };
     let inliers = ctx.inliers as f64;
     let c1a = frame.index >= ctx.last_keyframe_frame + ctx.max_frames;
     let mapping_idle = ctx.mapping_queue == 0;
     let c1b = mapping_idle;
-    let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
+    let c1c = !mono && (inliers < reference_matches as f64 * 0.25 || need_close);
     let c2 = (inliers < reference_matches as f64 * ref_ratio || need_close) && ctx.inliers > 15;
     tracing::trace!(
         frame = frame.index,
@@ -138,7 +157,7 @@ pub(crate) fn needs_keyframe(
         c2,
         "keyframe decision"
     );
-    (c1a || c1b || c1c) && c2 && (mapping_idle || ctx.mapping_queue < MAX_MAPPING_QUEUE)
+    (c1a || c1b || c1c) && c2 && (mapping_idle || (!mono && ctx.mapping_queue < MAX_MAPPING_QUEUE))
 }
 
 /// ORB-SLAM3's `CreateNewKeyFrame` for stereo: the frame becomes a

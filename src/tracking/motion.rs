@@ -8,11 +8,23 @@ use super::frame::Frame;
 use super::pose::refine_pose;
 use super::relocalise::pnp_ransac;
 use super::search::{match_descriptors, match_projected, VisiblePoint};
-use crate::camera::CameraRig;
+use crate::camera::{CameraRig, Sensor};
 use crate::error::SlamError;
 
 /// ORB-SLAM3's window for stereo (`th = 7`), in level-0 pixels per scale.
 pub const MOTION_MODEL_RADIUS: f32 = 7.0;
+/// ORB-SLAM3's window for monocular and RGB-D (`th = 15`).
+pub const MOTION_MODEL_RADIUS_SINGLE: f32 = 15.0;
+
+/// The motion model's window for the rig's sensor (ORB-SLAM3's
+/// `TrackWithMotionModel`: 7 for stereo, 15 otherwise).
+fn motion_model_radius(rig: &CameraRig) -> f32 {
+    if rig.sensor == Sensor::Stereo {
+        MOTION_MODEL_RADIUS
+    } else {
+        MOTION_MODEL_RADIUS_SINGLE
+    }
+}
 
 /// Projects the last frame's points with the current pose estimate,
 /// predicting each at the octave it was seen at.
@@ -76,10 +88,11 @@ pub(crate) fn track_with_motion_model(
     frame.pose_cw = velocity.compose(&last.pose_cw);
     frame.map_points.iter_mut().for_each(|p| *p = None);
     let points = last_frame_points(frame, last, map, rig);
-    let mut matches = match_projected(frame, map, &points, MOTION_MODEL_RADIUS, (1, 1), None)?;
+    let radius = motion_model_radius(rig);
+    let mut matches = match_projected(frame, map, &points, radius, (1, 1), None)?;
     if matches < 20 {
         frame.map_points.iter_mut().for_each(|p| *p = None);
-        matches = match_projected(frame, map, &points, 2.0 * MOTION_MODEL_RADIUS, (1, 1), None)?;
+        matches = match_projected(frame, map, &points, 2.0 * radius, (1, 1), None)?;
     }
     if matches < 20 {
         tracing::debug!(

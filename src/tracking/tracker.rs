@@ -9,9 +9,10 @@ use crate::optim::{LieGroup, Se3};
 use super::frame::Frame;
 use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext};
 use super::local_map::track_local_map;
+use super::mono_init::MonoInitialiser;
 use super::motion::{track_reference_keyframe, track_with_motion_model};
 use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
-use crate::camera::CameraRig;
+use crate::camera::{CameraRig, Sensor};
 use crate::error::{MapContext, SlamError};
 
 /// Where tracking stands.
@@ -53,6 +54,9 @@ pub struct TrackOutcome {
     pub new_keyframe: Option<(KeyFrameId, Vec<MapPointId>)>,
     /// The frame's pose relative to its reference keyframe (`T_c,ref`), when tracked.
     pub relative_pose: Option<(KeyFrameId, Se3)>,
+    /// A monocular initialisation also made a keyframe of an earlier frame
+    /// (its index): that frame now has a pose.
+    pub earlier_keyframe: Option<(usize, KeyFrameId)>,
 }
 
 /// Tracks frames against a map.
@@ -74,6 +78,8 @@ pub struct Tracker {
     relocalisation_candidates: Option<Arc<dyn RelocalisationCandidates>>,
     /// Localisation only: no keyframe is inserted, no new map started.
     localisation_only: bool,
+    /// The monocular initialiser's reference frame (monocular only).
+    mono_init: MonoInitialiser,
 }
 
 /// Seconds of failed relocalisation after which tracking gives the map up
@@ -106,6 +112,7 @@ impl Tracker {
             max_frames: rig.fps.round().max(1.0) as usize,
             relocalisation_candidates: None,
             localisation_only: false,
+            mono_init: MonoInitialiser::default(),
         }
     }
 
@@ -294,6 +301,7 @@ impl Tracker {
                 inliers,
                 new_keyframe: None,
                 relative_pose: None,
+                earlier_keyframe: None,
             };
             return Ok((None, outcome, false));
         }
@@ -323,6 +331,7 @@ impl Tracker {
             inliers,
             new_keyframe: None,
             relative_pose,
+            earlier_keyframe: None,
         };
         Ok((Some(frame), outcome, wants_keyframe))
     }
@@ -343,13 +352,22 @@ impl Tracker {
     }
 
     fn initialise(&mut self, mut frame: Frame, map: &mut Map) -> Result<TrackOutcome, SlamError> {
-        let Some(kf) = initialise_map(&mut frame, map, &self.rig)? else {
+        let (kf, earlier_keyframe) = if self.rig.sensor == Sensor::Monocular {
+            match self.mono_init.offer(&mut frame, map, &self.rig)? {
+                Some(init) => (Some(init.second), Some((init.first_frame, init.first))),
+                None => (None, None),
+            }
+        } else {
+            (initialise_map(&mut frame, map, &self.rig)?, None)
+        };
+        let Some(kf) = kf else {
             return Ok(TrackOutcome {
                 state: TrackingState::NotInitialised,
                 method: TrackingMethod::None,
                 inliers: 0,
                 new_keyframe: None,
                 relative_pose: None,
+                earlier_keyframe: None,
             });
         };
         self.state = TrackingState::Ok;
@@ -365,6 +383,7 @@ impl Tracker {
             inliers,
             new_keyframe: Some((kf, created)),
             relative_pose,
+            earlier_keyframe,
         })
     }
 
