@@ -169,6 +169,11 @@ impl StereoRectifier {
         (self.size.width, self.size.height)
     }
 
+    /// Undistorts and rectifies the left image alone (monocular runs).
+    pub fn rectify_left(&self, left: &Mat) -> Result<Mat> {
+        self.remap(left, &self.left_maps)
+    }
+
     /// Undistorts and rectifies a pair (bilinear interpolation, black border).
     pub fn rectify(&self, left: &Mat, right: &Mat) -> Result<RectifiedPair> {
         Ok(RectifiedPair {

@@ -16,6 +16,7 @@ mod output;
 mod pipeline;
 mod signals;
 mod source;
+mod tum_layout;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -23,8 +24,7 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use spslam::camera::CameraRig;
-use spslam::dataset::StereoFrame;
+use spslam::camera::{CameraRig, Sensor};
 use spslam::features::{
     AnmsMethod, Device, FeatureExtractor, OrbConfig, OrbExtractor, Precision, SuperPointExtractor,
 };
@@ -37,9 +37,9 @@ use spslam::tracking::Frontend;
 
 use frame_loop::{FrameLoop, RunEnd};
 use output::RunOutputs;
-use pipeline::with_extraction_stage;
+use pipeline::{with_extraction_stage, Reading};
 use signals::StopRequest;
-use source::Source;
+use source::{Source, DEFAULT_DEPTH_MAP_FACTOR};
 
 /// Exit code of an incomplete run whose outputs were written.
 const EXIT_INCOMPLETE: u8 = 2;
@@ -64,9 +64,15 @@ A second Ctrl-C or SIGTERM ends the run at once, writing nothing
 #[derive(clap::Args)]
 #[command(after_help = EXIT_CODES)]
 pub struct RunArgs {
-    /// The sequence: kitti:DIR, euroc:DIR or synth:DIR (DIR of `spslam synth --out`).
+    /// The sequence: kitti:DIR, euroc:DIR, synth:DIR (DIR of `spslam synth
+    /// --out`) or tum:DIR (a TUM RGB-D folder: rgb.txt, depth.txt).
     #[arg(long)]
     dataset: String,
+    /// The camera: mono (left images only), stereo or rgbd (a depth image
+    /// per frame: TUM folders, `spslam synth` output) [default: rgbd for
+    /// tum:, stereo otherwise].
+    #[arg(long)]
+    sensor: Option<Sensor>,
     /// Feature extractor.
     #[arg(long, value_enum, default_value_t = ExtractorChoice::Superpoint)]
     extractor: ExtractorChoice,
@@ -142,12 +148,16 @@ enum ExtractorChoice {
     Orb,
 }
 
-/// The left and right extractors of `choice`, from the settings.
+/// The extractors of `choice` from the settings: the left one, and the
+/// right one for stereo.
+#[allow(clippy::type_complexity)]
 fn extractors(
     choice: ExtractorChoice,
     settings: &SlamSettings,
     levels: usize,
-) -> Result<(Box<dyn FeatureExtractor>, Box<dyn FeatureExtractor>)> {
+    sensor: Sensor,
+) -> Result<(Box<dyn FeatureExtractor>, Option<Box<dyn FeatureExtractor>>)> {
+    let stereo = sensor == Sensor::Stereo;
     let e = &settings.extractor;
     match choice {
         ExtractorChoice::Orb => {
@@ -158,19 +168,25 @@ fn extractors(
                 ini_th_fast: e.ini_th_fast,
                 min_th_fast: e.min_th_fast,
             };
-            Ok((
-                Box::new(OrbExtractor::new(config)?),
-                Box::new(OrbExtractor::new(config)?),
-            ))
+            let right: Option<Box<dyn FeatureExtractor>> = if stereo {
+                Some(Box::new(OrbExtractor::new(config)?))
+            } else {
+                None
+            };
+            Ok((Box::new(OrbExtractor::new(config)?), right))
         }
         ExtractorChoice::Superpoint => {
-            // One ONNX Runtime thread pool per image; the two run in parallel.
+            // One ONNX Runtime thread pool per image; a stereo pair's two
+            // run in parallel, a single image gets every core.
             let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
-            let config = e.superpoint_config(levels, cores / 2);
-            Ok((
-                Box::new(SuperPointExtractor::new(config.clone())?),
-                Box::new(SuperPointExtractor::new(config)?),
-            ))
+            let threads = if stereo { cores / 2 } else { cores };
+            let config = e.superpoint_config(levels, threads);
+            let right: Option<Box<dyn FeatureExtractor>> = if stereo {
+                Some(Box::new(SuperPointExtractor::new(config.clone())?))
+            } else {
+                None
+            };
+            Ok((Box::new(SuperPointExtractor::new(config)?), right))
         }
     }
 }
@@ -186,9 +202,10 @@ fn file_fingerprint(path: &std::path::Path) -> Option<String> {
 /// complete run, 2 for an incomplete one (its outputs written).
 pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     let source = Source::open(&args.dataset)?;
+    let sensor = args.sensor.unwrap_or_else(|| source.default_sensor());
     let mut settings = match &args.settings {
         Some(path) => SlamSettings::from_file(path)?,
-        None => source.default_settings(),
+        None => source.default_settings()?,
     };
     if let Some(anms) = args.anms {
         settings.extractor.anms = anms;
@@ -199,24 +216,26 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     if let Some(device) = args.device {
         settings.extractor.device = device;
     }
-    let frames: Vec<StereoFrame> = source
-        .frames()
-        .iter()
-        .take(args.frames.unwrap_or(usize::MAX))
-        .cloned()
-        .collect();
+    let mut frames = source.frames(sensor)?;
+    frames.truncate(args.frames.unwrap_or(usize::MAX));
     if frames.is_empty() {
         bail!("the sequence has no frames");
     }
-    let size = source.first_size(&frames)?;
-    let rig = CameraRig::from_settings(&settings, size.0, size.1)?;
+    let depth_factor = settings
+        .depth_map_factor
+        .unwrap_or(DEFAULT_DEPTH_MAP_FACTOR);
+    let size = source.first_size(&frames, depth_factor)?;
+    let rig = CameraRig::for_sensor(&settings, sensor, size.0, size.1)?;
     let levels = args.levels.unwrap_or(match args.extractor {
         ExtractorChoice::Superpoint => settings.extractor.superpoint_levels,
         ExtractorChoice::Orb => settings.extractor.n_levels,
     });
-    let (left, right) = extractors(args.extractor, &settings, levels)?;
+    let (left, right) = extractors(args.extractor, &settings, levels, sensor)?;
     let inference = left.inference_summary();
-    let frontend = Frontend::new(left, right, &rig);
+    let frontend = match right {
+        Some(right) => Frontend::new(left, right, &rig),
+        None => Frontend::single(left, &rig)?,
+    };
     let mut slam = SlamSystem::new(rig, frontend);
     if let Some(mapper) = slam.mapper_mut() {
         mapper.bundle_adjustment = !args.no_local_ba;
@@ -230,7 +249,13 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         ExtractorChoice::Orb => None,
     };
     let mut codebook_fingerprint = None;
-    if !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint {
+    let loop_closing = !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint;
+    if loop_closing && sensor == Sensor::Monocular {
+        eprintln!(
+            "note: loop closing is off for --sensor mono (a monocular loop needs a Sim(3) correction, not in this version)"
+        );
+    }
+    if loop_closing && sensor != Sensor::Monocular {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         let config = settings.extractor.superpoint_config(levels, cores / 2);
         let path = args
@@ -302,7 +327,8 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         .detach_extractors()
         .context("the system's extractors are already in use")?;
     let started = std::time::Instant::now();
-    let mut end = with_extraction_stage(&source, &frames, size, extractors, |prepared| {
+    let reading = Reading { size, depth_factor };
+    let mut end = with_extraction_stage(&source, &frames, reading, extractors, |prepared| {
         frame_loop.run(&mut slam, prepared, &mut unreadable)
     });
     // Local mapping finishes its queue; when it fails, what the map holds
@@ -344,6 +370,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         dataset: &args.dataset,
         source: &source,
         settings: &settings,
+        sensor,
         frames_total: frames.len(),
         inference: &inference,
         wall_seconds: started.elapsed().as_secs_f64(),

@@ -11,7 +11,57 @@ use spslam::eval::{
     Trajectory, DEFAULT_MAX_DIFF,
 };
 
+use spslam::camera::Sensor;
+
 use super::source::Source;
+
+/// What the evaluation of a run found.
+#[derive(Debug, Default)]
+pub struct RunEvaluation {
+    /// ATE, RPE and (KITTI layout) the KITTI metric.
+    pub report: Option<EvalReport>,
+    /// Final-position drift (KITTI layout, metric sensors).
+    pub drift: Option<Drift>,
+    /// Scale drift (monocular).
+    pub scale_drift: Option<ScaleDrift>,
+}
+
+/// A monocular run's scale drift: the Sim(3) scale that aligns the first
+/// third of the estimate with the ground truth, the scale for the last
+/// third, and their ratio (1: no drift).
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct ScaleDrift {
+    /// Scale fitted on the first third.
+    pub first_third: f64,
+    /// Scale fitted on the last third.
+    pub last_third: f64,
+    /// `last_third / first_third`.
+    pub ratio: f64,
+}
+
+/// The scale drift of paired trajectories (at least 9 poses).
+fn scale_drift(reference: &Trajectory, estimate: &Trajectory) -> Option<ScaleDrift> {
+    let n = reference.len().min(estimate.len());
+    if n < 9 {
+        return None;
+    }
+    let third = n / 3;
+    let scale_of = |range: std::ops::Range<usize>| -> Option<f64> {
+        let keep: Vec<usize> = range.collect();
+        let r = reference.select(&keep);
+        let e = estimate.select(&keep);
+        spslam::eval::ate(&r, &e, Alignment::Sim3)
+            .ok()
+            .map(|a| a.scale)
+    };
+    let first_third = scale_of(0..third)?;
+    let last_third = scale_of(n - third..n)?;
+    Some(ScaleDrift {
+        first_third,
+        last_third,
+        ratio: last_third / first_third,
+    })
+}
 
 /// The end of a run against the ground truth, both starting at frame 0's pose.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -51,14 +101,16 @@ fn final_drift(gt: &Trajectory, estimate: &Trajectory) -> Option<Drift> {
 /// ground truth, pose by pose; EuRoC: paired by timestamp), appends the
 /// figures to `text` and writes the plots (`trajectory.png`,
 /// `trajectory_errors.png`) into `out`.
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate_run(
     source: &Source,
+    sensor: Sensor,
     gt: &Trajectory,
     trajectory: &Trajectory,
     out: &Path,
     links: &[(f64, f64)],
     text: &mut String,
-) -> Result<(Option<EvalReport>, Option<Drift>)> {
+) -> Result<RunEvaluation> {
     let pairing = if source.is_kitti() {
         Pairing::ByIndex
     } else {
@@ -67,7 +119,8 @@ pub fn evaluate_run(
             one_to_one: true,
         }
     };
-    let drift = if source.is_kitti() {
+    let monocular = sensor == Sensor::Monocular;
+    let drift = if source.is_kitti() && !monocular {
         final_drift(gt, trajectory)
     } else {
         None
@@ -88,14 +141,39 @@ pub fn evaluate_run(
             text.push_str(&format!(
                 "ATE/RPE not computed: {e} (a straight path cannot be aligned; the drift above is unaligned)\n"
             ));
-            return Ok((None, drift));
+            return Ok(RunEvaluation {
+                report: None,
+                drift,
+                scale_drift: None,
+            });
         }
     };
     text.push_str(&report_table(&report));
     let pair = pair_trajectories(gt, trajectory, pairing)?;
+    let scale_drift = if monocular {
+        scale_drift(&pair.reference, &pair.estimate)
+    } else {
+        None
+    };
+    if let Some(d) = &scale_drift {
+        text.push_str(&format!(
+            "monocular scale (Sim3 fit): first third {:.4}, last third {:.4}; scale drift {:.3}x\n",
+            d.first_third, d.last_third, d.ratio
+        ));
+    }
     // KITTI-layout runs are plotted as given (from above, x–z); EuRoC after
-    // SE3 alignment (x–y).
-    let (estimate, plane) = if source.is_kitti() {
+    // SE3 alignment (x–y); monocular runs after Sim3 alignment.
+    let (estimate, plane) = if monocular {
+        let plane = if source.is_kitti() {
+            PlotPlane::Xz
+        } else {
+            PlotPlane::Xy
+        };
+        (
+            align(&pair.reference, &pair.estimate, Alignment::Sim3)?,
+            plane,
+        )
+    } else if source.is_kitti() {
         (pair.estimate.clone(), PlotPlane::Xz)
     } else {
         (
@@ -112,5 +190,9 @@ pub fn evaluate_run(
         plot.display(),
         errors.display()
     ));
-    Ok((Some(report), drift))
+    Ok(RunEvaluation {
+        report: Some(report),
+        drift,
+        scale_drift,
+    })
 }

@@ -8,16 +8,14 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use indicatif::ProgressBar;
-use spslam::dataset::StereoFrame;
 use spslam::error::SlamError;
 use spslam::system::SlamSystem;
-use spslam::tracking::SensorImages;
 
 use std::sync::mpsc::Receiver;
 
 use super::pipeline::{panic_text, PrepareError, Prepared, PreparedFrame};
 use super::signals::StopRequest;
-use super::source::{Unreadable, UnreadableCause};
+use super::source::{InputFrame, Unreadable, UnreadableCause};
 
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -74,7 +72,7 @@ pub struct UnreadableFrame {
 /// What the frame loop needs besides the system and the extraction stage.
 pub struct FrameLoop<'a> {
     /// The frames requested.
-    pub frames: &'a [StereoFrame],
+    pub frames: &'a [InputFrame],
     /// Stop at the first unreadable frame instead of skipping it.
     pub strict: bool,
     /// Polled between frames.
@@ -159,7 +157,7 @@ impl FrameLoop<'_> {
         &self,
         slam: &mut SlamSystem,
         index: usize,
-        frame: &StereoFrame,
+        frame: &InputFrame,
         prepared: Result<PreparedFrame, PrepareError>,
     ) -> Result<(), FrameError> {
         let prepared = prepared.map_err(|e| match e {
@@ -174,10 +172,7 @@ impl FrameLoop<'_> {
                 index,
                 frame.timestamp,
                 prepared.features,
-                SensorImages::Stereo {
-                    left: prepared.left.view(),
-                    right: prepared.right.view(),
-                },
+                prepared.images.views(),
                 prepared.extraction_ms,
             )
             .map(|record| (record.state, record.inliers))
@@ -199,7 +194,7 @@ impl FrameLoop<'_> {
 }
 
 /// Per-frame input errors make the frame unreadable; the others are fatal.
-fn classify(error: SlamError, frame: &StereoFrame) -> FrameError {
+fn classify(error: SlamError, frame: &InputFrame) -> FrameError {
     match error {
         SlamError::ImageSizeMismatch {
             left_width,
@@ -208,7 +203,7 @@ fn classify(error: SlamError, frame: &StereoFrame) -> FrameError {
             right_height,
             ..
         } => FrameError::Unreadable(Unreadable {
-            path: frame.right.clone(),
+            path: frame.right.clone().unwrap_or_else(|| frame.image.clone()),
             cause: UnreadableCause::StereoSizeMismatch {
                 left_width,
                 left_height,
@@ -217,7 +212,7 @@ fn classify(error: SlamError, frame: &StereoFrame) -> FrameError {
             },
         }),
         SlamError::Features { source, .. } => FrameError::Unreadable(Unreadable {
-            path: frame.left.clone(),
+            path: frame.image.clone(),
             cause: UnreadableCause::Features(source.to_string()),
         }),
         other => FrameError::Fatal(other.to_string()),

@@ -13,9 +13,10 @@ use spslam::system::{
     FrameRecord, LoopRecord, MergeRecord, RejectedLoopRecord, SlamSummary, SlamSystem,
 };
 
-use super::evaluation::{evaluate_run, Drift};
+use super::evaluation::{evaluate_run, Drift, RunEvaluation, ScaleDrift};
 use super::frame_loop::{RunEnd, UnreadableFrame};
 use super::source::Source;
+use spslam::camera::Sensor;
 
 /// Where and what to write, besides the system's state.
 pub struct RunOutputs<'a> {
@@ -27,6 +28,8 @@ pub struct RunOutputs<'a> {
     pub source: &'a Source,
     /// The settings the run used.
     pub settings: &'a SlamSettings,
+    /// The camera the run used.
+    pub sensor: Sensor,
     /// The number of input frames requested.
     pub frames_total: usize,
     /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
@@ -40,6 +43,8 @@ pub struct RunOutputs<'a> {
 #[derive(serde::Serialize)]
 struct RunReport<'a> {
     dataset: &'a str,
+    /// `mono`, `stereo` or `rgbd`.
+    sensor: Sensor,
     extractor: &'a str,
     /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
     inference: &'a str,
@@ -62,8 +67,12 @@ struct RunReport<'a> {
     settings: &'a SlamSettings,
     summary: Option<&'a SlamSummary>,
     evaluation: Option<&'a EvalReport>,
-    /// Final-position drift (KITTI-layout runs with ground truth).
+    /// Final-position drift (KITTI-layout runs with ground truth; not for
+    /// monocular runs, whose scale is arbitrary).
     drift: Option<Drift>,
+    /// Monocular runs: the Sim(3) scale fitted on the first and the last
+    /// third of the trajectory, and their ratio.
+    scale_drift: Option<ScaleDrift>,
     /// Loops accepted and corrected: query and match input frames,
     /// inliers, the correction's size.
     loops: &'a [LoopRecord],
@@ -292,16 +301,16 @@ impl RunOutputs<'_> {
                 u.index, u.path, u.reason
             ));
         }
-        let (evaluation, drift) = match &trajectory {
+        let evaluated = match &trajectory {
             Some(t) => match self.evaluate(t, end, &loop_links(slam), &mut text) {
                 Ok(found) => found,
                 Err(e) => {
                     text.push_str(&format!("evaluation failed: {e:#}\n"));
                     problems.push(e.context("evaluation failed"));
-                    (None, None)
+                    RunEvaluation::default()
                 }
             },
-            None => (None, None),
+            None => RunEvaluation::default(),
         };
 
         print!("{text}");
@@ -312,6 +321,7 @@ impl RunOutputs<'_> {
         keep(result, &mut problems);
         let report = RunReport {
             dataset: self.dataset,
+            sensor: self.sensor,
             extractor: &extractor,
             inference: self.inference,
             wall_seconds: self.wall_seconds,
@@ -324,8 +334,9 @@ impl RunOutputs<'_> {
             unreadable_frames: unreadable,
             settings: self.settings,
             summary: summary.as_ref(),
-            evaluation: evaluation.as_ref(),
-            drift,
+            evaluation: evaluated.report.as_ref(),
+            drift: evaluated.drift,
+            scale_drift: evaluated.scale_drift,
             loops: slam.loops(),
             rejected_loops: slam.rejected_loops(),
             merges: slam.merges(),
@@ -362,9 +373,9 @@ impl RunOutputs<'_> {
         end: &RunEnd,
         links: &[(f64, f64)],
         text: &mut String,
-    ) -> Result<(Option<EvalReport>, Option<Drift>)> {
+    ) -> Result<RunEvaluation> {
         let Some(gt) = self.source.ground_truth(trajectory.len())? else {
-            return Ok((None, None));
+            return Ok(RunEvaluation::default());
         };
         if !end.is_complete() {
             text.push_str(&format!(
@@ -372,7 +383,15 @@ impl RunOutputs<'_> {
                 trajectory.len()
             ));
         }
-        evaluate_run(self.source, &gt, trajectory, self.out, links, text)
+        evaluate_run(
+            self.source,
+            self.sensor,
+            &gt,
+            trajectory,
+            self.out,
+            links,
+            text,
+        )
     }
 
     /// `report.json`.

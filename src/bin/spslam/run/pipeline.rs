@@ -15,12 +15,10 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::time::Instant;
 
-use spslam::dataset::StereoFrame;
 use spslam::error::SlamError;
-use spslam::features::GrayImage;
-use spslam::tracking::{Extractors, SensorFeatures, SensorImages};
+use spslam::tracking::{Extractors, SensorFeatures};
 
-use super::source::{Source, Unreadable};
+use super::source::{InputFrame, LoadedImages, Source, Unreadable};
 
 /// How many prepared frames may wait for tracking. One is enough to hide
 /// extraction behind tracking; more only holds images in memory.
@@ -28,14 +26,21 @@ pub const QUEUE_DEPTH: usize = 1;
 
 /// A frame read and extracted, ready for stereo matching and tracking.
 pub struct PreparedFrame {
-    /// The left image.
-    pub left: GrayImage,
-    /// The right image.
-    pub right: GrayImage,
-    /// Both images' features.
+    /// The frame's images.
+    pub images: LoadedImages,
+    /// Its features (both images' for stereo).
     pub features: SensorFeatures,
     /// Wall time of the extraction (both images, in parallel), in ms.
     pub extraction_ms: f64,
+}
+
+/// How frames are read: the first frame's size, the depth images' units.
+#[derive(Debug, Clone, Copy)]
+pub struct Reading {
+    /// Every image must have this size (the first frame's).
+    pub size: (usize, usize),
+    /// Depth units per metre (`DepthMapFactor`).
+    pub depth_factor: f64,
 }
 
 /// Why a frame could not be prepared.
@@ -69,14 +74,14 @@ pub struct Prepared {
 /// queue is dropped and the stage stops after the frame in hand.
 pub fn with_extraction_stage<R>(
     source: &Source,
-    frames: &[StereoFrame],
-    size: (usize, usize),
+    frames: &[InputFrame],
+    reading: Reading,
     extractors: Extractors,
     consume: impl FnOnce(&Receiver<Prepared>) -> R,
 ) -> R {
     let (sender, receiver) = sync_channel(QUEUE_DEPTH);
     std::thread::scope(|scope| {
-        scope.spawn(move || prepare_all(source, frames, size, extractors, sender));
+        scope.spawn(move || prepare_all(source, frames, reading, extractors, sender));
         let result = consume(&receiver);
         drop(receiver);
         result
@@ -85,14 +90,14 @@ pub fn with_extraction_stage<R>(
 
 fn prepare_all(
     source: &Source,
-    frames: &[StereoFrame],
-    size: (usize, usize),
+    frames: &[InputFrame],
+    reading: Reading,
     mut extractors: Extractors,
     sender: SyncSender<Prepared>,
 ) {
     for (index, frame) in frames.iter().enumerate() {
         let result = catch_unwind(AssertUnwindSafe(|| {
-            prepare(source, frame, size, index, &mut extractors)
+            prepare(source, frame, reading, index, &mut extractors)
         }))
         .unwrap_or_else(|payload| {
             Err(PrepareError::Panicked {
@@ -108,27 +113,20 @@ fn prepare_all(
 
 fn prepare(
     source: &Source,
-    frame: &StereoFrame,
-    size: (usize, usize),
+    frame: &InputFrame,
+    reading: Reading,
     index: usize,
     extractors: &mut Extractors,
 ) -> Result<PreparedFrame, PrepareError> {
-    let (left, right) = source
-        .load(frame, Some(size))
+    let images = source
+        .load(frame, Some(reading.size), reading.depth_factor)
         .map_err(PrepareError::Unreadable)?;
     let start = Instant::now();
     let features = extractors
-        .extract(
-            index,
-            SensorImages::Stereo {
-                left: left.view(),
-                right: right.view(),
-            },
-        )
+        .extract(index, images.views())
         .map_err(PrepareError::Extraction)?;
     Ok(PreparedFrame {
-        left,
-        right,
+        images,
         features,
         extraction_ms: start.elapsed().as_secs_f64() * 1e3,
     })

@@ -1,0 +1,110 @@
+//! Monocular SLAM with SuperPoint (what `spslam run --sensor mono` builds:
+//! int8, the settings' SuperPoint levels) on the left images of the KITTI
+//! 06 excerpt (51 frames): it must initialise, track every frame after
+//! that to the end, and keep the ATE after Sim3 alignment and the scale
+//! drift within regression bounds (measured 0.036 m and 1.006x; the
+//! bounds are 1 % of the path and ±10 %).
+
+mod common;
+
+use spslam::camera::{CameraRig, Sensor};
+use spslam::dataset::KittiSequence;
+use spslam::eval::{ate, read_kitti, Alignment, Trajectory};
+use spslam::features::GrayImage;
+use spslam::settings::SlamSettings;
+use spslam::system::SlamSystem;
+use spslam::tracking::{Frontend, SensorImages, TrackingMethod, TrackingState};
+
+#[test]
+fn monocular_superpoint_on_kitti_06_initialises_and_tracks_to_the_end() {
+    let Some(data) = common::setup("slam_mono_kitti") else {
+        return;
+    };
+    let seq = KittiSequence::open(data.join("kitti"), "06").unwrap_or_else(|e| panic!("{e}"));
+    let settings = SlamSettings::from_file(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/settings/KITTI04-12.yaml"
+    ))
+    .unwrap_or_else(|e| panic!("{e}"));
+    let first = GrayImage::load(&seq.frames()[0].left).unwrap_or_else(|e| panic!("{e}"));
+    let rig = CameraRig::for_sensor(&settings, Sensor::Monocular, first.width(), first.height())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let config = settings
+        .extractor
+        .superpoint_config(settings.extractor.superpoint_levels, 2);
+    let extractor = Box::new(common::extractor(config));
+    let frontend = Frontend::single(extractor, &rig).unwrap_or_else(|e| panic!("{e}"));
+    let mut slam = SlamSystem::new(rig, frontend);
+    if let Some(mapper) = slam.mapper_mut() {
+        mapper.check_invariants = true;
+    }
+    for (i, f) in seq.frames().iter().enumerate() {
+        let image = GrayImage::load(&f.left).unwrap_or_else(|e| panic!("{e}"));
+        slam.process_images(i, f.timestamp, SensorImages::Monocular(image.view()))
+            .unwrap_or_else(|e| panic!("frame {i}: {e}"));
+    }
+    slam.finish().unwrap_or_else(|e| panic!("{e}"));
+    let records = slam.records();
+    let init: Vec<usize> = records
+        .iter()
+        .filter(|r| r.method == TrackingMethod::Initialisation)
+        .map(|r| r.index)
+        .collect();
+    let Some(&start) = init.first() else {
+        panic!("no monocular initialisation on the excerpt");
+    };
+    let lost: Vec<usize> = records
+        .iter()
+        .filter(|r| r.index >= start && r.state != TrackingState::Ok)
+        .map(|r| r.index)
+        .collect();
+    let poses = slam.trajectory().unwrap_or_else(|e| panic!("{e}"));
+    let keep: Vec<usize> = (start..poses.len()).collect();
+    let estimate = Trajectory::new(
+        poses.iter().map(|(t, _)| *t).collect(),
+        poses.iter().map(|(_, p)| p.to_isometry()).collect(),
+    )
+    .select(&keep);
+    let gt_path = seq
+        .ground_truth_path()
+        .unwrap_or_else(|| panic!("no ground truth"));
+    let gt = read_kitti(&gt_path)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .select(&keep);
+    let path: f64 = gt
+        .poses
+        .windows(2)
+        .map(|w| (w[1].translation.vector - w[0].translation.vector).norm())
+        .sum();
+    let sim3 = ate(&gt, &estimate, Alignment::Sim3).unwrap_or_else(|e| panic!("{e}"));
+    let third = keep.len() / 3;
+    let scale = |range: std::ops::Range<usize>| {
+        let idx: Vec<usize> = range.collect();
+        ate(&gt.select(&idx), &estimate.select(&idx), Alignment::Sim3)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .scale
+    };
+    let (s_first, s_last) = (scale(0..third), scale(keep.len() - third..keep.len()));
+    let keyframes = records.iter().filter(|r| r.keyframe).count();
+    eprintln!(
+        "KITTI 06 mono: initialised at frames {init:?}; {} frames after, {} lost; {keyframes} keyframes; \
+         ATE (Sim3) {:.4} m over {path:.1} m ({:.3} %); scale first third {s_first:.3}, last third {s_last:.3}, drift {:.3}x",
+        keep.len(),
+        lost.len(),
+        sim3.stats.rmse,
+        100.0 * sim3.stats.rmse / path,
+        s_last / s_first
+    );
+    assert!(start < 10, "initialised only at frame {start}");
+    assert!(
+        lost.is_empty(),
+        "frames lost after initialisation: {lost:?}"
+    );
+    assert!(
+        sim3.stats.rmse <= 0.01 * path,
+        "ATE (Sim3) {:.4} m over {path:.1} m",
+        sim3.stats.rmse
+    );
+    let drift = s_last / s_first;
+    assert!((0.9..=1.1).contains(&drift), "scale drift {drift:.3}x");
+}
