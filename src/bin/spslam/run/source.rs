@@ -148,7 +148,7 @@ pub enum Source {
     /// An EuRoC ASL folder, rectified on reading.
     Euroc(EurocLayout),
     /// A TUM RGB-D folder (or `spslam synth` output read as one).
-    Tum(TumLayout),
+    Tum(Box<TumLayout>),
 }
 
 impl Source {
@@ -161,7 +161,7 @@ impl Source {
         match kind {
             "kitti" | "synth" => Ok(Self::Kitti(Box::new(KittiLayout::open(&dir)?))),
             "euroc" => Ok(Self::Euroc(EurocLayout::open(&dir)?)),
-            "tum" => Ok(Self::Tum(TumLayout::open(&dir)?)),
+            "tum" => Ok(Self::Tum(Box::new(TumLayout::open(&dir)?))),
             other => bail!("unknown dataset kind `{other}` (kitti, euroc, synth or tum)"),
         }
     }
