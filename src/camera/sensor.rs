@@ -6,8 +6,10 @@ use std::str::FromStr;
 
 /// The sensor kind: what a frame holds besides its (left) image.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Sensor {
     /// One camera: no depth; the map's scale is arbitrary and drifts.
+    #[serde(rename = "mono")]
     Monocular,
     /// A rectified stereo pair: depth from matching along rows.
     Stereo,

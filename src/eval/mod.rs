@@ -10,6 +10,7 @@ pub mod kitti_metric;
 pub mod plot;
 pub mod report;
 pub mod rpe;
+pub mod scale_drift;
 pub mod stats;
 pub mod sync;
 pub mod table;
@@ -31,6 +32,7 @@ pub use report::{
     evaluate, pair_trajectories, AteReport, EvalOptions, EvalReport, Pairing, RpeReport,
 };
 pub use rpe::{rpe, RpeDelta, RpeOptions, RpeResult};
+pub use scale_drift::{scale_drift, ScaleDrift};
 pub use stats::ErrorStats;
 pub use sync::{associate, associate_with, AssociatedPair, DEFAULT_MAX_DIFF};
 pub use trajectory::Trajectory;

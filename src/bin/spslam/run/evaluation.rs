@@ -12,6 +12,7 @@ use spslam::eval::{
 };
 
 use spslam::camera::Sensor;
+use spslam::eval::{scale_drift, ScaleDrift};
 
 use super::source::Source;
 
@@ -24,43 +25,6 @@ pub struct RunEvaluation {
     pub drift: Option<Drift>,
     /// Scale drift (monocular).
     pub scale_drift: Option<ScaleDrift>,
-}
-
-/// A monocular run's scale drift: the Sim(3) scale that aligns the first
-/// third of the estimate with the ground truth, the scale for the last
-/// third, and their ratio (1: no drift).
-#[derive(Debug, Clone, Copy, serde::Serialize)]
-pub struct ScaleDrift {
-    /// Scale fitted on the first third.
-    pub first_third: f64,
-    /// Scale fitted on the last third.
-    pub last_third: f64,
-    /// `last_third / first_third`.
-    pub ratio: f64,
-}
-
-/// The scale drift of paired trajectories (at least 9 poses).
-fn scale_drift(reference: &Trajectory, estimate: &Trajectory) -> Option<ScaleDrift> {
-    let n = reference.len().min(estimate.len());
-    if n < 9 {
-        return None;
-    }
-    let third = n / 3;
-    let scale_of = |range: std::ops::Range<usize>| -> Option<f64> {
-        let keep: Vec<usize> = range.collect();
-        let r = reference.select(&keep);
-        let e = estimate.select(&keep);
-        spslam::eval::ate(&r, &e, Alignment::Sim3)
-            .ok()
-            .map(|a| a.scale)
-    };
-    let first_third = scale_of(0..third)?;
-    let last_third = scale_of(n - third..n)?;
-    Some(ScaleDrift {
-        first_third,
-        last_third,
-        ratio: last_third / first_third,
-    })
 }
 
 /// The end of a run against the ground truth, both starting at frame 0's pose.
@@ -131,6 +95,18 @@ pub fn evaluate_run(
             d.final_position_m, d.path_m, d.percent
         ));
     }
+    let pair = pair_trajectories(gt, trajectory, pairing)?;
+    let scale_drift = if monocular {
+        scale_drift(&pair.reference, &pair.estimate)
+    } else {
+        None
+    };
+    if let Some(d) = &scale_drift {
+        text.push_str(&format!(
+            "monocular scale (path length, ground truth / estimate): first third {:.4}, last third {:.4}; scale drift {:.3}x\n",
+            d.first_third, d.last_third, d.ratio
+        ));
+    }
     let options = EvalOptions {
         pairing,
         ..EvalOptions::default()
@@ -144,23 +120,11 @@ pub fn evaluate_run(
             return Ok(RunEvaluation {
                 report: None,
                 drift,
-                scale_drift: None,
+                scale_drift,
             });
         }
     };
     text.push_str(&report_table(&report));
-    let pair = pair_trajectories(gt, trajectory, pairing)?;
-    let scale_drift = if monocular {
-        scale_drift(&pair.reference, &pair.estimate)
-    } else {
-        None
-    };
-    if let Some(d) = &scale_drift {
-        text.push_str(&format!(
-            "monocular scale (Sim3 fit): first third {:.4}, last third {:.4}; scale drift {:.3}x\n",
-            d.first_third, d.last_third, d.ratio
-        ));
-    }
     // KITTI-layout runs are plotted as given (from above, x–z); EuRoC after
     // SE3 alignment (x–y); monocular runs after Sim3 alignment.
     let (estimate, plane) = if monocular {

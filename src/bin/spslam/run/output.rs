@@ -13,10 +13,11 @@ use spslam::system::{
     FrameRecord, LoopRecord, MergeRecord, RejectedLoopRecord, SlamSummary, SlamSystem,
 };
 
-use super::evaluation::{evaluate_run, Drift, RunEvaluation, ScaleDrift};
+use super::evaluation::{evaluate_run, Drift, RunEvaluation};
 use super::frame_loop::{RunEnd, UnreadableFrame};
 use super::source::Source;
 use spslam::camera::Sensor;
+use spslam::eval::ScaleDrift;
 
 /// Where and what to write, besides the system's state.
 pub struct RunOutputs<'a> {
