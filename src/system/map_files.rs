@@ -64,10 +64,13 @@ fn check_provenance(
     Ok(())
 }
 
-/// Whether two rigs are the same camera (intrinsics, baseline, size).
+/// Whether two rigs are the same camera (sensor, intrinsics, baseline,
+/// size): a monocular map has no metric scale, so it never serves a
+/// stereo or RGB-D system, nor the other way round.
 fn same_camera(a: &CameraRig, b: &CameraRig) -> bool {
     let close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * x.abs().max(y.abs()).max(1.0);
-    close(a.camera.fx, b.camera.fx)
+    a.sensor == b.sensor
+        && close(a.camera.fx, b.camera.fx)
         && close(a.camera.fy, b.camera.fy)
         && close(a.camera.cx, b.camera.cx)
         && close(a.camera.cy, b.camera.cy)
