@@ -1,6 +1,7 @@
-//! The stereo SLAM driver: front end, tracking and local mapping over the
-//! atlas. Local mapping runs either inline, right after each new keyframe
-//! (deterministic: tests and benchmarks), or on its own thread
+//! The SLAM driver (stereo, RGB-D or monocular, as the rig says): front
+//! end, tracking and local mapping over the atlas. Local mapping runs
+//! either inline, right after each new keyframe (deterministic: tests and
+//! benchmarks), or on its own thread
 //! ([`SlamSystem::spawn_mapping_thread`]) as in ORB-SLAM3, fed keyframes
 //! through a channel while the next frame is extracted and tracked.
 
@@ -49,7 +50,8 @@ pub(super) enum Mapping {
     },
 }
 
-/// Stereo SLAM over a sequence of rectified pairs.
+/// SLAM over a sequence of frames of one sensor (the rig's: rectified
+/// stereo pairs, RGB-D images or monocular images).
 ///
 /// Threads: tracking runs on the caller's thread, local mapping inline or
 /// on its own thread. Loop closing ([`Self::enable_loop_closing`]) checks

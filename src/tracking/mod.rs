@@ -1,10 +1,13 @@
-//! Stereo tracking (ORB-SLAM3's `Tracking` for rectified stereo).
+//! Tracking (ORB-SLAM3's `Tracking` for stereo, RGB-D and monocular
+//! cameras, without IMU).
 //!
-//! - [`Frontend`]: extracts left and right features in parallel and
-//!   matches them along rows into a [`Frame`];
-//! - [`Tracker`]: stereo initialisation, the constant-velocity motion
+//! - [`Frontend`]: extracts the features (a stereo pair's in parallel) and
+//!   gives the keypoints their depths by sensor (stereo matching along
+//!   rows, the depth image, none) into a [`Frame`];
+//! - [`Tracker`]: initialisation by sensor (one frame with depths, or the
+//!   monocular two-view reconstruction), the constant-velocity motion
 //!   model, the reference keyframe and relocalisation as fallbacks, local
-//!   map tracking, ORB-SLAM3's stereo keyframe decision and insertion;
+//!   map tracking, ORB-SLAM3's keyframe decision and insertion;
 //!
 //! The driver that runs tracking with local mapping over an atlas of maps
 //! is [`crate::system::SlamSystem`]; tracking imports nothing from it.
