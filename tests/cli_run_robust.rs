@@ -250,7 +250,9 @@ fn strict_stops_at_the_corrupt_frame_and_writes_the_frames_before() {
         String::from_utf8_lossy(&info.stderr)
     );
     assert!(
-        info_text.contains("format version 1") && info_text.contains("extractor orb"),
+        info_text.contains("format version 2")
+            && info_text.contains("extractor orb")
+            && info_text.contains("camera: stereo"),
         "{info_text}"
     );
     let loaded = spslam::storage::load(&map).unwrap_or_else(|e| panic!("{e}"));

@@ -166,15 +166,19 @@ fn an_interrupted_save_leaves_the_previous_file_and_bad_files_are_named() {
         ok(std::fs::write(&p, bytes));
         p
     };
-    let mut v2 = before.clone();
-    v2[8] = 2;
-    let e = load(&write("v2.spmap", &v2))
-        .map(|_| ())
-        .map_err(|e| e.to_string());
-    assert!(
-        matches!(&e, Err(m) if m.contains("version 2") && m.contains("v2.spmap")),
-        "{e:?}"
-    );
+    // Version 1 (before the sensor was stored) and a future version 3.
+    for version in [1u8, 3] {
+        let mut other = before.clone();
+        other[8] = version;
+        let name = format!("v{version}.spmap");
+        let e = load(&write(&name, &other))
+            .map(|_| ())
+            .map_err(|e| e.to_string());
+        assert!(
+            matches!(&e, Err(m) if m.contains(&format!("version {version}")) && m.contains(&name)),
+            "{e:?}"
+        );
+    }
     let e = load(&write("cut.spmap", &before[..before.len() - 7]));
     assert!(matches!(e, Err(StorageError::Truncated { .. })), "{e:?}");
     let mut flipped = before.clone();

@@ -46,7 +46,7 @@ pub fn run_map(args: MapArgs) -> Result<()> {
          extractor settings: {}\n\
          model hash: {}\n\
          codebook hash: {}\n\
-         camera: fx {:.3} fy {:.3} cx {:.3} cy {:.3}, baseline {:.4} m, {}x{} px, {:.1} fps\n\
+         camera: {}, fx {:.3} fy {:.3} cx {:.3} cy {:.3}, baseline {:.4} m, {}x{} px, {:.1} fps\n\
          active map: {}\n",
         file.display(),
         bytes.len(),
@@ -61,6 +61,7 @@ pub fn run_map(args: MapArgs) -> Result<()> {
         },
         meta.model_hash.as_deref().unwrap_or("(none)"),
         meta.codebook_hash.as_deref().unwrap_or("(none)"),
+        rig.sensor,
         rig.fx,
         rig.fy,
         rig.cx,
