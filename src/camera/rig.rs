@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 
 use super::Sensor;
+use crate::geometry::two_view::PinholeIntrinsics;
 
 use crate::error::SlamError;
 use crate::optim::reprojection::PinholeStereo;
@@ -92,6 +93,16 @@ impl CameraRig {
             max_depth: settings.max_depth.filter(|d| *d > 0.0),
             fps: if c.fps > 0.0 { c.fps } else { 10.0 },
         })
+    }
+
+    /// The (left) camera's intrinsics.
+    pub fn intrinsics(&self) -> PinholeIntrinsics {
+        PinholeIntrinsics {
+            fx: self.camera.fx,
+            fy: self.camera.fy,
+            cx: self.camera.cx,
+            cy: self.camera.cy,
+        }
     }
 
     /// The camera-frame point seen at pixel `(u, v)` with depth `z`.

@@ -82,18 +82,7 @@ impl View {
 fn fundamental(v1: &View, v2: &View, rig: &CameraRig) -> Matrix3<f64> {
     let rel = v2.pose.compose(&v1.pose.inverse());
     let e = hat(&rel.translation) * rel.rotation_matrix();
-    let c = &rig.camera;
-    let k_inv = Matrix3::new(
-        1.0 / c.fx,
-        0.0,
-        -c.cx / c.fx,
-        0.0,
-        1.0 / c.fy,
-        -c.cy / c.fy,
-        0.0,
-        0.0,
-        1.0,
-    );
+    let k_inv = rig.intrinsics().k_inverse();
     k_inv.transpose() * e * k_inv
 }
 

@@ -8,9 +8,7 @@
 
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
-use crate::geometry::two_view::{
-    reconstruct_two_views, PinholeIntrinsics, TwoViewParams, TwoViewReconstruction,
-};
+use crate::geometry::two_view::{reconstruct_two_views, TwoViewParams, TwoViewReconstruction};
 use crate::map::{KeyFrameId, Map, MapPointId, PointDescriptor};
 use crate::matching::{match_temporal, DistanceThresholds, Match, TemporalParams};
 use crate::optim::{LieGroup, Se3};
@@ -101,12 +99,7 @@ impl MonoInitialiser {
                 *last = (kp.x, kp.y);
             }
         }
-        let camera = PinholeIntrinsics {
-            fx: rig.camera.fx,
-            fy: rig.camera.fy,
-            cx: rig.camera.cx,
-            cy: rig.camera.cy,
-        };
+        let camera = rig.intrinsics();
         let pixel = |f: &Frame, i: usize| {
             f.features
                 .keypoints

@@ -81,22 +81,12 @@ pub(crate) fn check_homography(
 
 /// The pinhole matrix `K`.
 pub(crate) fn k_matrix(c: &PinholeIntrinsics) -> Matrix3<f64> {
-    Matrix3::new(c.fx, 0.0, c.cx, 0.0, c.fy, c.cy, 0.0, 0.0, 1.0)
+    c.k()
 }
 
 /// `K⁻¹` in closed form.
 pub(crate) fn k_inverse(c: &PinholeIntrinsics) -> Matrix3<f64> {
-    Matrix3::new(
-        1.0 / c.fx,
-        0.0,
-        -c.cx / c.fx,
-        0.0,
-        1.0 / c.fy,
-        -c.cy / c.fy,
-        0.0,
-        0.0,
-        1.0,
-    )
+    c.k_inverse()
 }
 
 /// A motion hypothesis `(R_21, t_21)`.

@@ -58,6 +58,28 @@ pub struct PinholeIntrinsics {
     pub cy: f64,
 }
 
+impl PinholeIntrinsics {
+    /// The pinhole matrix `K`.
+    pub fn k(&self) -> Matrix3<f64> {
+        Matrix3::new(self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0)
+    }
+
+    /// `K⁻¹` in closed form.
+    pub fn k_inverse(&self) -> Matrix3<f64> {
+        Matrix3::new(
+            1.0 / self.fx,
+            0.0,
+            -self.cx / self.fx,
+            0.0,
+            1.0 / self.fy,
+            -self.cy / self.fy,
+            0.0,
+            0.0,
+            1.0,
+        )
+    }
+}
+
 /// Which model explained the two views.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub enum TwoViewModel {
