@@ -44,11 +44,14 @@ rust-release: build
 DEMO_SEQ := $(OUT)/demo_loop
 demo: build
 	@mkdir -p $(OUT)
-	./target/release/spslam synth --out $(DEMO_SEQ) --scene loop --no-depth --overwrite
+	./target/release/spslam synth --out $(DEMO_SEQ) --scene loop --overwrite
 	./target/release/spslam extract $(DEMO_SEQ)/sequences/00/image_0/000000.png --features 1000 --anms kdtree --draw $(OUT)/demo_keypoints.png
 	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --levels 1 --out $(OUT)/demo_run
+	./target/release/spslam run --dataset tum:$(DEMO_SEQ)/sequences/00 --levels 1 --out $(OUT)/demo_run_rgbd
+	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --sensor mono --levels 1 --out $(OUT)/demo_run_mono
 	@echo "[demo] trajectory plot: $(OUT)/demo_run/trajectory.png (errors: $(OUT)/demo_run/trajectory_errors.png)"
 	@echo "[demo] report: $(OUT)/demo_run/report.txt; keypoints of frame 0: $(OUT)/demo_keypoints.png"
+	@echo "[demo] the same loop as RGB-D (TUM lists and depth maps): $(OUT)/demo_run_rgbd/report.txt; monocular: $(OUT)/demo_run_mono/report.txt"
 
 lint: setup
 	$(CARGO) fmt --check
