@@ -60,14 +60,6 @@ pub enum SlamError {
         /// What is wrong.
         reason: String,
     },
-    /// A feature this build does not offer for the sensor.
-    #[error("{feature} is not available for a {sensor} camera in this version (monocular loops need a Sim(3) correction); run without it")]
-    UnsupportedForSensor {
-        /// What was asked for.
-        feature: &'static str,
-        /// The system's sensor.
-        sensor: crate::camera::Sensor,
-    },
     /// An RGB-D frame's depth image differs in size from its image.
     #[error("frame {frame}: the image is {image_width}x{image_height}, its depth image {depth_width}x{depth_height}; depth must be registered to the image")]
     DepthSizeMismatch {

@@ -1,5 +1,7 @@
-//! Loop correction on the map, as ORB-SLAM3's `LoopClosing::CorrectLoop`
-//! for a stereo map (SE3):
+//! Loop correction on the map, as ORB-SLAM3's `LoopClosing::CorrectLoop`:
+//! SE(3) for a stereo or RGB-D map; Sim(3) for a monocular one, whose
+//! query side is also scaled to the loop side (the poses `T ← (R, t/s)`
+//! of the corrected similarities, the points through them):
 //!
 //! 1. the query keyframe and its covisible keyframes move by the loop's
 //!    correction `C` (`T_kw ← T_kw·C`), and the points they observe with
@@ -18,10 +20,11 @@ use std::collections::{BTreeMap, BTreeSet};
 use nalgebra::Vector3;
 
 use crate::camera::CameraRig;
+use crate::camera::Sensor;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::mapping::{apply_fusion_candidates, plan_fusion_into, refresh_observed_points};
-use crate::optim::{LieGroup, Se3};
+use crate::optim::{LieGroup, Se3, Sim3};
 
 use super::detector::AcceptedLoop;
 use super::essential_graph::{optimise_essential_graph, EssentialGraphInput};
@@ -52,7 +55,39 @@ pub fn pose_difference(a: &Se3, b: &Se3) -> (f64, f64) {
     ((ca - cb).norm(), angle)
 }
 
-/// Corrects `map` with an accepted loop (see the module's docs).
+/// The scale of the query's side of a monocular loop over the loop side's:
+/// the median ratio of a matched pair's depths in the query camera, the
+/// query's own point (current pose) over the loop's (corrected pose);
+/// 1 with fewer than 10 pairs.
+fn loop_scale(map: &Map, accepted: &AcceptedLoop, query_pose: &Se3) -> f64 {
+    let Ok(query) = map.keyframe(accepted.query) else {
+        return 1.0;
+    };
+    let mut ratios: Vec<f64> = accepted
+        .matches
+        .iter()
+        .enumerate()
+        .filter_map(|(i, matched)| {
+            let own = map
+                .map_point(map.resolve_point(query.map_point(i)?)?)
+                .ok()?;
+            let other = map.map_point(map.resolve_point((*matched)?)?).ok()?;
+            let z_own = query_pose.transform_point(&own.position).z;
+            let z_other = accepted.pose_cw.transform_point(&other.position).z;
+            (z_own > 0.0 && z_other > 0.0).then(|| z_own / z_other)
+        })
+        .filter(|r| r.is_finite())
+        .collect();
+    if ratios.len() < 10 {
+        return 1.0;
+    }
+    let mid = ratios.len() / 2;
+    let (_, median, _) = ratios.select_nth_unstable_by(mid, f64::total_cmp);
+    *median
+}
+
+/// Corrects `map` with an accepted loop (see the module's docs; a
+/// monocular map's in Sim(3), as ORB-SLAM3's `CorrectLoop`).
 pub fn correct_loop(
     map: &mut Map,
     accepted: &AcceptedLoop,
@@ -60,6 +95,19 @@ pub fn correct_loop(
 ) -> Result<LoopCorrection, SlamError> {
     let query_pose = map.pose_cw_of(accepted.query).in_stage("loop correction")?;
     let correction = query_pose.inverse().compose(&accepted.pose_cw);
+    // Monocular: the query side's scale over the loop side's, and the
+    // correction as a similarity (ORB-SLAM3's `mg2oLoopScw`).
+    let similarity = (rig.sensor == Sensor::Monocular).then(|| {
+        let scale = loop_scale(map, accepted, &query_pose);
+        let corrected_query = Sim3::new(
+            accepted.pose_cw.rotation,
+            accepted.pose_cw.translation * scale,
+            scale,
+        );
+        Sim3::from_se3(&query_pose)
+            .inverse()
+            .compose(&corrected_query)
+    });
     let (correction_m, correction_deg) = pose_difference(&query_pose, &accepted.pose_cw);
     let group: BTreeSet<KeyFrameId> = accepted.group.iter().copied().collect();
 
@@ -75,17 +123,30 @@ pub fn correct_loop(
         .map(|k| (*k, map.best_covisible(*k, usize::MAX).into_iter().collect()))
         .collect();
     let mut uncorrected = BTreeMap::new();
+    let mut corrected_sim3 = BTreeMap::new();
     let mut points: BTreeSet<MapPointId> = BTreeSet::new();
     for k in &moved {
         let kf = map.keyframe_mut(*k).in_stage("loop correction")?;
-        uncorrected.insert(*k, kf.pose_cw());
-        kf.set_pose_cw(kf.pose_cw().compose(&correction));
+        let pose = kf.pose_cw();
+        uncorrected.insert(*k, pose);
+        match &similarity {
+            Some(c) => {
+                let corrected = Sim3::from_se3(&pose).compose(c);
+                corrected_sim3.insert(*k, corrected);
+                kf.set_pose_cw(corrected.to_se3_unscaled());
+            }
+            None => kf.set_pose_cw(pose.compose(&correction)),
+        }
         points.extend(kf.observed_points().map(|(_, p)| p));
     }
     let inverse = correction.inverse();
+    let similarity_inverse = similarity.map(|c| c.inverse());
     for p in &points {
         if let Ok(point) = map.map_point_mut(*p) {
-            point.position = inverse.transform_point(&point.position);
+            point.position = match &similarity_inverse {
+                Some(c) => c.transform_point(&point.position),
+                None => inverse.transform_point(&point.position),
+            };
         }
     }
 
@@ -163,6 +224,7 @@ pub fn correct_loop(
         loop_connections,
         query: Some(accepted.query),
         fixed: Some(accepted.candidate),
+        corrected_sim3: similarity.map(|_| corrected_sim3),
     };
     let outcome = optimise_essential_graph(map, &input)?;
     let before = &outcome.before;
@@ -172,7 +234,9 @@ pub fn correct_loop(
         let (Some(old), Ok(new)) = (before.get(&r), map.keyframe(r).map(|kf| kf.pose_cw())) else {
             continue;
         };
-        let camera = old.transform_point(&point.position);
+        // In the node's scale before, and back to the keyframe's after.
+        let scale = outcome.scale_after.get(&r).copied().unwrap_or(1.0);
+        let camera = old.transform_point(&point.position) / scale;
         moves.push((point.id(), new.inverse().transform_point(&camera)));
     }
     for (id, position) in moves {

@@ -21,6 +21,8 @@
 //!   global bundle adjustment after a correction.
 
 mod correct;
+#[cfg(test)]
+mod correct_tests;
 mod detector;
 mod essential_graph;
 mod global_ba;
@@ -35,7 +37,7 @@ pub use detector::{
 };
 pub use essential_graph::{
     build_essential_graph, optimise_essential_graph, EssentialGraph, EssentialGraphInput,
-    EssentialGraphOutcome, MIN_ESSENTIAL_WEIGHT,
+    EssentialGraphOutcome, GraphPose, MIN_ESSENTIAL_WEIGHT,
 };
 pub use global_ba::{
     apply_global_ba, snapshot_global_ba, solve_global_ba, GlobalBaSnapshot, GlobalBaSummary,

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::camera::CameraRig;
+use crate::camera::{CameraRig, Sensor};
 use crate::error::SlamError;
 use std::collections::BTreeMap;
 
@@ -216,7 +216,8 @@ impl LoopClosingStage {
             step.detection = Some(Detection::Loop(accepted));
             return Ok(step);
         }
-        if !self.merger.has_archived() {
+        // A monocular map would merge in Sim(3); `Map::absorb` is SE(3).
+        if !self.merger.has_archived() || rig.sensor == Sensor::Monocular {
             return Ok(step);
         }
         let Some(descriptor) = outcome.descriptor else {

@@ -7,8 +7,6 @@
 
 use std::sync::Arc;
 
-use crate::camera::Sensor;
-
 use crate::error::SlamError;
 use crate::loop_closing::{DatabaseRelocaliser, LoopThresholds};
 use crate::place::GlobalDescriptor;
@@ -38,14 +36,6 @@ impl SlamSystem {
         descriptor: Arc<dyn GlobalDescriptor>,
         thresholds: LoopThresholds,
     ) -> Result<(), SlamError> {
-        if self.rig.sensor == Sensor::Monocular {
-            // A monocular loop must be corrected in Sim(3) (scale drift);
-            // the correction here is SE(3).
-            return Err(SlamError::UnsupportedForSensor {
-                feature: "loop closing and map merging",
-                sensor: self.rig.sensor,
-            });
-        }
         let stage = LoopClosingStage::new(Arc::clone(&descriptor), thresholds)?;
         let relocaliser = DatabaseRelocaliser::new(descriptor, stage.shared_database());
         self.tracker

@@ -249,13 +249,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         ExtractorChoice::Orb => None,
     };
     let mut codebook_fingerprint = None;
-    let loop_closing = !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint;
-    if loop_closing && sensor == Sensor::Monocular {
-        eprintln!(
-            "note: loop closing is off for --sensor mono (a monocular loop needs a Sim(3) correction, not in this version)"
-        );
-    }
-    if loop_closing && sensor != Sensor::Monocular {
+    if !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint {
         let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
         let config = settings.extractor.superpoint_config(levels, cores / 2);
         let path = args
