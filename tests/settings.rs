@@ -199,3 +199,46 @@ fn unreadable_files_are_reported_with_their_path() {
         "{garbage:?}"
     );
 }
+
+#[test]
+fn rgbd_and_camera_type_keys_are_read_as_orb_slam3_reads_them() {
+    use spslam::camera::{CameraRig, Sensor};
+    // TUM1.yaml's keys: the virtual baseline Camera.bf, ThDepth, DepthMapFactor.
+    let tum = OLD_LAYOUT
+        .replace("Camera.bf: 47.90639384423901", "Camera.bf: 40.0")
+        .replace(
+            "ThDepth: 35.0",
+            "ThDepth: 40.0\nDepthMapFactor: 5000.0\nCamera.type: \"PinHole\"",
+        );
+    let s = SlamSettings::from_file(write("tum1.yaml", &tum)).expect("TUM-style settings");
+    assert_eq!(s.depth_map_factor, Some(5000.0));
+    let rig = CameraRig::for_sensor(&s, Sensor::Rgbd, 752, 480).expect("rgbd rig");
+    assert!((rig.camera.bf - 40.0).abs() < 1e-9);
+    // ORB-SLAM3's mThDepth = bf · ThDepth / fx.
+    assert!((rig.close_depth - 40.0 * 40.0 / 435.2).abs() < 1e-9);
+    let mono = CameraRig::for_sensor(&s, Sensor::Monocular, 752, 480).expect("mono rig");
+    assert_eq!(mono.camera.bf, 0.0);
+    // Without a baseline: stereo is refused, RGB-D takes the default virtual one.
+    let no_baseline = OLD_LAYOUT.replace("Camera.bf: 47.90639384423901\n", "");
+    let s = SlamSettings::from_file(write("nob.yaml", &no_baseline)).expect("settings");
+    let stereo = CameraRig::for_sensor(&s, Sensor::Stereo, 752, 480).map(|_| ());
+    assert!(
+        matches!(&stereo, Err(e) if e.to_string().contains("--sensor mono or rgbd")),
+        "{stereo:?}"
+    );
+    let rgbd = CameraRig::for_sensor(&s, Sensor::Rgbd, 752, 480).expect("rgbd rig");
+    assert!((rgbd.baseline - spslam::camera::DEFAULT_RGBD_BASELINE).abs() < 1e-12);
+    // A fisheye camera is refused, naming the key.
+    let fisheye = error_for(
+        "kb8.yaml",
+        &OLD_LAYOUT.replace(
+            "Camera.fx: 435.2",
+            "Camera.type: \"KannalaBrandt8\"\nCamera.fx: 435.2",
+        ),
+    );
+    assert!(
+        matches!(&fisheye, SettingsError::Invalid { key, .. } if key == "Camera.type"),
+        "{fisheye}"
+    );
+    assert!(fisheye.to_string().contains("KannalaBrandt8"), "{fisheye}");
+}
