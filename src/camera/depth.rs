@@ -135,7 +135,9 @@ impl DepthImage {
             },
             MatError::OpenCv(reason) => unreadable(reason),
         })?;
-        if let Some(median_m) = image.median_valid() {
+        // The scale check reads every 7th pixel: a median needs no more,
+        // and this runs on every frame.
+        if let Some(median_m) = median_of(image.metres.iter().step_by(7).copied()) {
             if !(PLAUSIBLE_MEDIAN_M.0..=PLAUSIBLE_MEDIAN_M.1).contains(&median_m) {
                 return Err(DepthError::WrongScale {
                     path: path.to_path_buf(),
@@ -217,18 +219,7 @@ impl DepthImage {
 
     /// The median of the valid depths; `None` when no pixel has one.
     pub fn median_valid(&self) -> Option<f32> {
-        let mut valid: Vec<f32> = self
-            .metres
-            .iter()
-            .copied()
-            .filter(|d| d.is_finite() && *d > 0.0)
-            .collect();
-        if valid.is_empty() {
-            return None;
-        }
-        let mid = valid.len() / 2;
-        let (_, median, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
-        Some(*median)
+        median_of(self.metres.iter().copied())
     }
 
     /// Checks the size against the colour image's, naming `path` when not.
@@ -249,6 +240,17 @@ impl DepthImage {
             expected_height,
         })
     }
+}
+
+/// The median of the valid (finite, positive) depths among `depths`.
+fn median_of(depths: impl Iterator<Item = f32>) -> Option<f32> {
+    let mut valid: Vec<f32> = depths.filter(|d| d.is_finite() && *d > 0.0).collect();
+    if valid.is_empty() {
+        return None;
+    }
+    let mid = valid.len() / 2;
+    let (_, median, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
+    Some(*median)
 }
 
 /// Why a matrix is not a depth image (before the path is attached).

@@ -191,8 +191,12 @@ impl Source {
         };
         match (self, sensor) {
             (Self::Kitti(seq), Sensor::Rgbd) => {
-                let has_depth = seq.frames.first().and_then(|f| depth_beside(&f.left));
-                if has_depth.is_none_or(|d| !d.parent().is_some_and(Path::is_dir)) {
+                let depth_dir = seq
+                    .frames
+                    .first()
+                    .and_then(|f| depth_beside(&f.left))
+                    .and_then(|d| d.parent().map(Path::to_path_buf));
+                if !depth_dir.is_some_and(|d| d.is_dir()) {
                     bail!("--sensor rgbd needs depth images: this KITTI-layout sequence has no depth/ folder beside image_0/ (`spslam synth` writes one)");
                 }
                 Ok(stereo(&seq.frames, true))
