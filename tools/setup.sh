@@ -17,6 +17,10 @@
 #      and synthetic scenes; about 40 s) built if missing or older than
 #      tools/quantize_superpoint.py, tools/export_superpoint.py or the weights;
 #      its sha256 compared with tools/superpoint_int8.onnx.sha256
+#   7. models/superpoint_int8_avx2.onnx: the same with 7-bit weights
+#      (--reduce-range), the int8 model the library picks on x86 CPUs without
+#      VNNI, whose int8 kernels saturate; sha256 in
+#      tools/superpoint_int8_avx2.onnx.sha256
 #
 # Environment:
 #   SPSLAM_DEPS        dependency folder (default: <repo>/.deps)
@@ -39,6 +43,8 @@ EXPORTER="$ROOT/tools/export_superpoint.py"
 PINNED_SHA_FILE="$ROOT/tools/superpoint.onnx.sha256"
 QUANTIZER="$ROOT/tools/quantize_superpoint.py"
 PINNED_INT8_SHA_FILE="$ROOT/tools/superpoint_int8.onnx.sha256"
+MODEL_INT8_AVX2="$(dirname "$MODEL_INT8")/superpoint_int8_avx2.onnx"
+PINNED_INT8_AVX2_SHA_FILE="$ROOT/tools/superpoint_int8_avx2.onnx.sha256"
 
 ORT_VERSION="1.31.1"
 ORT_LIB="$DEPS/onnxruntime/libonnxruntime.so.$ORT_VERSION"
@@ -177,3 +183,18 @@ else
     step int8 "${out/$MODEL_INT8.tmp.$$/$MODEL_INT8}"
 fi
 check_pinned int8-model "$MODEL_INT8" "$PINNED_INT8_SHA_FILE"
+
+# ---- 7. int8 model for CPUs without VNNI (7-bit weights) -----------------------
+if [[ -f "$MODEL_INT8_AVX2" && ! "$QUANTIZER" -nt "$MODEL_INT8_AVX2" && ! "$EXPORTER" -nt "$MODEL_INT8_AVX2" \
+      && ! "$WEIGHTS" -nt "$MODEL_INT8_AVX2" ]]; then
+    step int8-avx2 "up to date ($MODEL_INT8_AVX2)"
+else
+    mkdir -p "$(dirname "$MODEL_INT8_AVX2")"
+    data_args=()
+    [[ -n "${SPSLAM_DATA:-}" ]] && data_args=(--data "$SPSLAM_DATA")
+    out="$("$PY" "$QUANTIZER" --reduce-range --weights "$WEIGHTS" --out "$MODEL_INT8_AVX2.tmp.$$" "${data_args[@]}")" \
+        || { rm -f "$MODEL_INT8_AVX2.tmp.$$"; die "quantisation of $MODEL_INT8_AVX2 failed"; }
+    mv -f "$MODEL_INT8_AVX2.tmp.$$" "$MODEL_INT8_AVX2"
+    step int8-avx2 "${out/$MODEL_INT8_AVX2.tmp.$$/$MODEL_INT8_AVX2}"
+fi
+check_pinned int8-avx2-model "$MODEL_INT8_AVX2" "$PINNED_INT8_AVX2_SHA_FILE"

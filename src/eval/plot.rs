@@ -11,20 +11,62 @@ use super::trajectory::Trajectory;
 /// Image size of the plots.
 pub const PLOT_SIZE: (u32, u32) = (1000, 800);
 
-/// The plane of a top view.
+/// The plane of a top view (evo's plot modes `xy`, `xz`, `yz`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum PlotPlane {
     /// x–z: KITTI's camera frame (x right, z forward).
     Xz,
     /// x–y: TUM, EuRoC and other world frames with z up.
     Xy,
+    /// y–z.
+    Yz,
 }
 
 impl PlotPlane {
+    /// The plane of the two axes along which `trajectory`'s positions
+    /// spread most (their range, max − min), so that a top view is never
+    /// drawn edge-on: a camera-frame trajectory (y down) gives x–z, a
+    /// world frame with z up gives x–y. x–y for an empty trajectory; on a
+    /// tie the earlier axis wins.
+    pub fn of_largest_extent(trajectory: &Trajectory) -> Self {
+        let extent = |axis: usize| {
+            let values = trajectory.poses.iter().map(|p| p.translation.vector[axis]);
+            let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(v), hi.max(v))
+            });
+            if high >= low {
+                high - low
+            } else {
+                0.0
+            }
+        };
+        let extents = [extent(0), extent(1), extent(2)];
+        // Leave out the axis of least extent (the later one on a tie).
+        let dropped = (0..3)
+            .rev()
+            .min_by(|&a, &b| extents[a].total_cmp(&extents[b]))
+            .unwrap_or(2);
+        match dropped {
+            0 => Self::Yz,
+            1 => Self::Xz,
+            _ => Self::Xy,
+        }
+    }
+
+    /// The plane's name as in evo's plot modes: `xy`, `xz` or `yz`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Xz => "xz",
+            Self::Xy => "xy",
+            Self::Yz => "yz",
+        }
+    }
+
     fn project(self, v: &nalgebra::Vector3<f64>) -> (f64, f64) {
         match self {
             Self::Xz => (v.x, v.z),
             Self::Xy => (v.x, v.y),
+            Self::Yz => (v.y, v.z),
         }
     }
 
@@ -32,6 +74,7 @@ impl PlotPlane {
         match self {
             Self::Xz => ("x [m]", "z [m]"),
             Self::Xy => ("x [m]", "y [m]"),
+            Self::Yz => ("y [m]", "z [m]"),
         }
     }
 }
@@ -248,4 +291,52 @@ pub fn write_error_plot(gt: &Trajectory, est: &Trajectory, path: &Path) -> Resul
         .draw_series(LineSeries::new(points, BLUE.stroke_width(2)))
         .map_err(|e| plot_error(path, e))?;
     root.present().map_err(|e| plot_error(path, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+    /// A trajectory through `points`.
+    fn through(points: &[[f64; 3]]) -> Trajectory {
+        Trajectory::from_poses(
+            points
+                .iter()
+                .map(|p| {
+                    Isometry3::from_parts(
+                        Translation3::new(p[0], p[1], p[2]),
+                        UnitQuaternion::identity(),
+                    )
+                })
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn the_plane_of_largest_extent_leaves_out_the_flattest_axis() {
+        // A camera-frame square (y down, nearly constant): x–z.
+        let camera = through(&[
+            [0.0, 0.1, 0.0],
+            [5.0, 0.0, 0.0],
+            [5.0, 0.2, 4.0],
+            [0.0, 0.0, 4.0],
+        ]);
+        assert_eq!(PlotPlane::of_largest_extent(&camera), PlotPlane::Xz);
+        // A world frame with z up: x–y.
+        let world = through(&[[0.0, 0.0, 1.0], [3.0, 2.0, 1.1], [1.0, 6.0, 0.9]]);
+        assert_eq!(PlotPlane::of_largest_extent(&world), PlotPlane::Xy);
+        // Motion in y–z only: y–z.
+        let side = through(&[[0.0, 0.0, 0.0], [0.01, 3.0, 1.0], [0.0, -2.0, 5.0]]);
+        assert_eq!(PlotPlane::of_largest_extent(&side), PlotPlane::Yz);
+        // Degenerate cases: x–y.
+        assert_eq!(PlotPlane::of_largest_extent(&through(&[])), PlotPlane::Xy);
+        assert_eq!(
+            PlotPlane::of_largest_extent(&through(&[[1.0, 2.0, 3.0]])),
+            PlotPlane::Xy
+        );
+        // A straight line along z: z and the earlier of the flat axes.
+        let line = through(&[[0.0, 0.0, 0.0], [0.0, 0.0, 9.0]]);
+        assert_eq!(PlotPlane::of_largest_extent(&line), PlotPlane::Xz);
+    }
 }

@@ -2,11 +2,12 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::plot_plane::PlotPlaneChoice;
 use anyhow::{bail, Context, Result};
 use spslam::eval::{
     align, evaluate, read_kitti_with_times, read_trajectory, report::pair_trajectories,
     table::report_table, write_error_plot, write_trajectory_plot, Alignment, EvalOptions, Pairing,
-    PlotPlane, Trajectory, TrajectoryFormat, DEFAULT_MAX_DIFF,
+    Trajectory, TrajectoryFormat, DEFAULT_MAX_DIFF,
 };
 
 #[derive(clap::Args)]
@@ -42,6 +43,9 @@ pub struct EvalArgs {
     /// Write the trajectory plot (PNG) here, and the error plot beside it as `<stem>_errors.png`.
     #[arg(long)]
     plot: Option<PathBuf>,
+    /// The plot's plane: auto (the ground truth's two largest extents), xy, xz or yz.
+    #[arg(long, value_enum, default_value_t = PlotPlaneChoice::Auto)]
+    plot_plane: PlotPlaneChoice,
 }
 
 fn load_trajectory(
@@ -100,19 +104,22 @@ pub fn run_eval(args: EvalArgs) -> Result<()> {
     if let Some(out) = &args.plot {
         let pair = pair_trajectories(&gt, &est, pairing)?;
         // KITTI results are plotted as given (like the devkit); others after SE3 alignment.
-        let (estimate, plane) = if gt_format == TrajectoryFormat::Kitti {
-            (pair.estimate.clone(), PlotPlane::Xz)
+        let estimate = if gt_format == TrajectoryFormat::Kitti {
+            pair.estimate.clone()
         } else {
-            (
-                align(&pair.reference, &pair.estimate, Alignment::Se3)?,
-                PlotPlane::Xy,
-            )
+            align(&pair.reference, &pair.estimate, Alignment::Se3)?
         };
+        let plane = args.plot_plane.resolve(&pair.reference);
         write_trajectory_plot(&pair.reference, &estimate, out, plane)?;
         let stem = out.file_stem().and_then(|s| s.to_str()).unwrap_or("plot");
         let errors = out.with_file_name(format!("{stem}_errors.png"));
         write_error_plot(&pair.reference, &estimate, &errors)?;
-        println!("wrote {} and {}", out.display(), errors.display());
+        println!(
+            "wrote {} ({} plane) and {}",
+            out.display(),
+            plane.name(),
+            errors.display()
+        );
     }
     Ok(())
 }

@@ -4,6 +4,7 @@ mod eval;
 mod extract;
 mod loops;
 mod map;
+mod plot_plane;
 mod run;
 mod synth;
 mod vocab;

@@ -22,6 +22,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 
+use crate::plot_plane::PlotPlaneChoice;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use spslam::camera::{CameraRig, Sensor};
@@ -137,6 +138,10 @@ pub struct RunArgs {
     /// localised, relocalised and lost.
     #[arg(long, requires = "load_map")]
     localize: bool,
+    /// The trajectory plot's plane: auto (the ground truth's two largest
+    /// extents), xy, xz or yz.
+    #[arg(long, value_enum, default_value_t = PlotPlaneChoice::Auto)]
+    plot_plane: PlotPlaneChoice,
 }
 
 /// `--extractor`.
@@ -368,6 +373,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         frames_total: frames.len(),
         inference: &inference,
         wall_seconds: started.elapsed().as_secs_f64(),
+        plot_plane: args.plot_plane,
     };
     let mut problems = outputs.write(&slam, &end, &unreadable);
     if let Some(problem) = map_problem {

@@ -5,10 +5,12 @@
 use std::path::Path;
 
 use anyhow::Result;
+
+use crate::plot_plane::PlotPlaneChoice;
 use spslam::eval::{
     align, evaluate, report::pair_trajectories, table::report_table, write_error_plot,
-    write_trajectory_plot_with_links, Alignment, EvalOptions, EvalReport, Pairing, PlotPlane,
-    Trajectory, DEFAULT_MAX_DIFF,
+    write_trajectory_plot_with_links, Alignment, EvalOptions, EvalReport, Pairing, Trajectory,
+    DEFAULT_MAX_DIFF,
 };
 
 use spslam::camera::Sensor;
@@ -73,6 +75,7 @@ pub fn evaluate_run(
     trajectory: &Trajectory,
     out: &Path,
     links: &[(f64, f64)],
+    plot_plane: PlotPlaneChoice,
     text: &mut String,
 ) -> Result<RunEvaluation> {
     let pairing = if source.is_kitti() {
@@ -125,32 +128,24 @@ pub fn evaluate_run(
         }
     };
     text.push_str(&report_table(&report));
-    // KITTI-layout runs are plotted as given (from above, x–z); EuRoC after
-    // SE3 alignment (x–y); monocular runs after Sim3 alignment.
-    let (estimate, plane) = if monocular {
-        let plane = if source.is_kitti() {
-            PlotPlane::Xz
-        } else {
-            PlotPlane::Xy
-        };
-        (
-            align(&pair.reference, &pair.estimate, Alignment::Sim3)?,
-            plane,
-        )
+    // KITTI-layout runs are plotted as given, EuRoC and TUM after SE3
+    // alignment, monocular runs after Sim3 alignment; the plane is the
+    // ground truth's two largest extents unless `--plot-plane` says.
+    let estimate = if monocular {
+        align(&pair.reference, &pair.estimate, Alignment::Sim3)?
     } else if source.is_kitti() {
-        (pair.estimate.clone(), PlotPlane::Xz)
+        pair.estimate.clone()
     } else {
-        (
-            align(&pair.reference, &pair.estimate, Alignment::Se3)?,
-            PlotPlane::Xy,
-        )
+        align(&pair.reference, &pair.estimate, Alignment::Se3)?
     };
+    let plane = plot_plane.resolve(&pair.reference);
     let plot = out.join("trajectory.png");
     let errors = out.join("trajectory_errors.png");
     write_trajectory_plot_with_links(&pair.reference, &estimate, &plot, plane, links)?;
     write_error_plot(&pair.reference, &estimate, &errors)?;
     text.push_str(&format!(
-        "plots: {} and {}\n",
+        "plots ({} plane): {} and {}\n",
+        plane.name(),
         plot.display(),
         errors.display()
     ));

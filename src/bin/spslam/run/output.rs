@@ -13,6 +13,8 @@ use spslam::system::{
     FrameRecord, LoopRecord, MergeRecord, RejectedLoopRecord, SlamSummary, SlamSystem,
 };
 
+use crate::plot_plane::PlotPlaneChoice;
+
 use super::evaluation::{evaluate_run, Drift, RunEvaluation};
 use super::frame_loop::{RunEnd, UnreadableFrame};
 use super::source::Source;
@@ -38,6 +40,8 @@ pub struct RunOutputs<'a> {
     /// Wall time of the frame loop (extraction pipelined with tracking)
     /// and of local mapping's last keyframes, s.
     pub wall_seconds: f64,
+    /// `--plot-plane`.
+    pub plot_plane: PlotPlaneChoice,
 }
 
 /// report.json.
@@ -391,6 +395,7 @@ impl RunOutputs<'_> {
             trajectory,
             self.out,
             links,
+            self.plot_plane,
             text,
         )
     }
