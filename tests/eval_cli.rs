@@ -34,6 +34,8 @@ fn eval_kitti_00_writes_json_and_plots() {
         String::from_utf8_lossy(&output.stderr)
     );
     assert!(stdout.contains("3283 segments"), "{stdout}");
+    // KITTI's camera frame (y down) is drawn from above: x–z.
+    assert!(stdout.contains("(xz plane)"), "{stdout}");
 
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -68,6 +70,25 @@ fn eval_kitti_00_writes_json_and_plots() {
             png.display()
         );
     }
+    // The plane can be chosen.
+    let side = out.join("side.png");
+    let output = Command::new(env!("CARGO_BIN_EXE_spslam"))
+        .arg("eval")
+        .arg("--gt")
+        .arg(dir.join("KITTI_00_gt.txt"))
+        .arg("--est")
+        .arg(dir.join("KITTI_00_ORB.txt"))
+        .arg("--plot")
+        .arg(&side)
+        .args(["--plot-plane", "yz"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        output.status.success() && stdout.contains("(yz plane)"),
+        "{stdout}"
+    );
+    assert!(side.exists());
     std::fs::remove_dir_all(&out).ok();
 }
 

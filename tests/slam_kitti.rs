@@ -2,7 +2,8 @@
 //! points kept (ORB-SLAM3's stereo points beyond `ThDepth`), with what
 //! `spslam run` uses by default (the int8 network on
 //! `DEFAULT_SUPERPOINT_LEVELS` pyramid levels): every frame tracked, and
-//! the int8 run's ATE within 10 % of the fp32 network's on the same levels.
+//! the int8 run's ATE within 10 % of the fp32 network's on the same levels
+//! (25 % for the 7-bit-weight int8 model of CPUs without VNNI).
 //! The ATE and drift bounds are regression bounds from the measured values
 //! (`EVALUATION.md`, "Pyramid levels": int8 0.084 m / 1.01 %, fp32 0.081 m
 //! on one level).
@@ -101,13 +102,28 @@ fn kitti_06_excerpt_superpoint_defaults_and_int8_vs_fp32() {
     let Some(data) = common::setup("kitti_06_excerpt_superpoint") else {
         return;
     };
+    // The int8 model this CPU loads: 8-bit weights with VNNI, 7-bit
+    // weights without (ONNX Runtime's sums saturate there; see
+    // `features::int8_sums_saturate`). The 7-bit model follows fp32 less
+    // closely (score correlation 0.963 against 0.989): measured with
+    // `SPSLAM_MODEL_INT8=models/superpoint_int8_avx2.onnx` (its outputs do
+    // not depend on the kernels): ATE 0.0959 m, fp32 0.0805 m (+19 %);
+    // the 8-bit model on VNNI: +4 %.
+    let seven_bit = Precision::Int8
+        .default_model_path()
+        .ends_with(Precision::Int8.model_file(true));
+    let (ate_bound_m, int8_ratio) = if seven_bit { (0.11, 1.25) } else { (0.10, 1.1) };
     let default = run_kitti(&data, None);
     assert!(
         default.lost.is_empty(),
         "frames not tracked: {:?}",
         default.lost
     );
-    assert!(default.ate_m <= 0.10, "ATE {} m", default.ate_m);
+    assert!(
+        default.ate_m <= ate_bound_m,
+        "ATE {} m (7-bit int8 model: {seven_bit})",
+        default.ate_m
+    );
     assert!(default.drift_pct <= 1.2, "drift {} %", default.drift_pct);
 
     let int8 = if ExtractorSettings::default().precision == Precision::Int8 {
@@ -118,10 +134,11 @@ fn kitti_06_excerpt_superpoint_defaults_and_int8_vs_fp32() {
     let fp32 = run_kitti(&data, Some(Precision::Fp32));
     assert!(int8.lost.is_empty() && fp32.lost.is_empty());
     // The bound: int8 within 10 % of fp32 (3 mm slack for another
-    // machine's kernels; measured +4 %).
+    // machine's kernels; measured +4 %); 25 % for the 7-bit model
+    // (measured +19 %).
     assert!(
-        int8.ate_m <= 1.1 * fp32.ate_m + 0.003,
-        "int8 ATE {} m vs fp32 {} m",
+        int8.ate_m <= int8_ratio * fp32.ate_m + 0.003,
+        "int8 ATE {} m vs fp32 {} m (7-bit int8 model: {seven_bit})",
         int8.ate_m,
         fp32.ate_m
     );

@@ -27,6 +27,6 @@ pub use error::FeatureError;
 pub use extractor::{PeriodicFilterReport, SuperPointExtractor};
 pub use frontend::{FeatureExtractor, FrameFeatures};
 pub use image::{GrayImage, GrayImageView, MAX_IMAGE_SIDE, MIN_IMAGE_SIDE};
-pub use inference::{Device, Precision};
+pub use inference::{int8_sums_saturate, Device, Precision};
 pub use keypoint::{Features, Keypoint, StageTimings};
 pub use orb::{OrbConfig, OrbExtractor};
