@@ -169,32 +169,27 @@ check_pinned() {
 }
 check_pinned model "$MODEL" "$PINNED_SHA_FILE"
 
-# ---- 6. int8 model ------------------------------------------------------------
-if [[ -f "$MODEL_INT8" && ! "$QUANTIZER" -nt "$MODEL_INT8" && ! "$EXPORTER" -nt "$MODEL_INT8" \
-      && ! "$WEIGHTS" -nt "$MODEL_INT8" ]]; then
-    step int8 "up to date ($MODEL_INT8)"
-else
-    mkdir -p "$(dirname "$MODEL_INT8")"
-    data_args=()
+# ---- 6, 7. int8 models ------------------------------------------------------------
+# quantize_int8 STEP MODEL [QUANTIZER ARGS...]: MODEL written by the quantiser
+# if missing or older than the quantiser, the exporter or the weights.
+quantize_int8() {
+    local name="$1" model="$2" out
+    shift 2
+    if [[ -f "$model" && ! "$QUANTIZER" -nt "$model" && ! "$EXPORTER" -nt "$model" \
+          && ! "$WEIGHTS" -nt "$model" ]]; then
+        step "$name" "up to date ($model)"
+        return
+    fi
+    mkdir -p "$(dirname "$model")"
+    local data_args=()
     [[ -n "${SPSLAM_DATA:-}" ]] && data_args=(--data "$SPSLAM_DATA")
-    out="$("$PY" "$QUANTIZER" --weights "$WEIGHTS" --out "$MODEL_INT8.tmp.$$" "${data_args[@]}")" \
-        || { rm -f "$MODEL_INT8.tmp.$$"; die "quantisation of $MODEL_INT8 failed"; }
-    mv -f "$MODEL_INT8.tmp.$$" "$MODEL_INT8"
-    step int8 "${out/$MODEL_INT8.tmp.$$/$MODEL_INT8}"
-fi
+    out="$("$PY" "$QUANTIZER" "$@" --weights "$WEIGHTS" --out "$model.tmp.$$" "${data_args[@]}")" \
+        || { rm -f "$model.tmp.$$"; die "quantisation of $model failed"; }
+    mv -f "$model.tmp.$$" "$model"
+    step "$name" "${out/$model.tmp.$$/$model}"
+}
+quantize_int8 int8 "$MODEL_INT8"
 check_pinned int8-model "$MODEL_INT8" "$PINNED_INT8_SHA_FILE"
-
-# ---- 7. int8 model for CPUs without VNNI (7-bit weights) -----------------------
-if [[ -f "$MODEL_INT8_AVX2" && ! "$QUANTIZER" -nt "$MODEL_INT8_AVX2" && ! "$EXPORTER" -nt "$MODEL_INT8_AVX2" \
-      && ! "$WEIGHTS" -nt "$MODEL_INT8_AVX2" ]]; then
-    step int8-avx2 "up to date ($MODEL_INT8_AVX2)"
-else
-    mkdir -p "$(dirname "$MODEL_INT8_AVX2")"
-    data_args=()
-    [[ -n "${SPSLAM_DATA:-}" ]] && data_args=(--data "$SPSLAM_DATA")
-    out="$("$PY" "$QUANTIZER" --reduce-range --weights "$WEIGHTS" --out "$MODEL_INT8_AVX2.tmp.$$" "${data_args[@]}")" \
-        || { rm -f "$MODEL_INT8_AVX2.tmp.$$"; die "quantisation of $MODEL_INT8_AVX2 failed"; }
-    mv -f "$MODEL_INT8_AVX2.tmp.$$" "$MODEL_INT8_AVX2"
-    step int8-avx2 "${out/$MODEL_INT8_AVX2.tmp.$$/$MODEL_INT8_AVX2}"
-fi
+# The model for CPUs without VNNI: 7-bit weights.
+quantize_int8 int8-avx2 "$MODEL_INT8_AVX2" --reduce-range
 check_pinned int8-avx2-model "$MODEL_INT8_AVX2" "$PINNED_INT8_AVX2_SHA_FILE"
