@@ -215,6 +215,13 @@ fn tracking_lost_on_blank_frames_recovers_by_relocalisation() {
         recovered <= blank.end + 2,
         "relocalised only at {recovered}"
     );
+    // ORB-SLAM3's `Track`: the frame after a relocalisation tracks the
+    // reference keyframe (a velocity would span the blank frames).
+    assert_eq!(
+        records.get(recovered + 1).map(|r| r.method),
+        Some(spslam::tracking::TrackingMethod::ReferenceKeyFrame),
+        "frame after the relocalisation: {states:?}"
+    );
     let lost_after: Vec<usize> = common::untracked(&records[recovered..]);
     assert!(lost_after.is_empty(), "lost again at {lost_after:?}");
     // The relocalised pose is as good as the last one tracked before the

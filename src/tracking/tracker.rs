@@ -315,10 +315,17 @@ impl Tracker {
         if let Some(reference) = frame.reference_keyframe {
             self.reference = Some(reference);
         }
-        self.velocity = self
-            .last_frame
-            .as_ref()
-            .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()));
+        // After a relocalisation the last tracked frame lies before the
+        // loss, so a velocity would span every frame lost: the next frame
+        // tracks the reference keyframe instead, as in ORB-SLAM3's `Track`
+        // (`mCurrentFrame.mnId < mnLastRelocFrameId + 2`).
+        self.velocity = if method == TrackingMethod::Relocalisation {
+            None
+        } else {
+            self.last_frame
+                .as_ref()
+                .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()))
+        };
         let wants_keyframe = self.reference.is_some_and(|reference| {
             let ctx = KeyFrameContext {
                 reference,
