@@ -75,66 +75,11 @@ pub(crate) struct KeyFrameContext {
     pub last_relocalisation_frame: Option<usize>,
     /// Map points matched as inliers in the frame.
     pub inliers: usize,
-    /// The most inliers a frame tracked with this reference keyframe
-    /// (its own frame included), `None` before the first: see
-    /// [`ReferenceBaseline`].
-    pub reference_baseline: Option<usize>,
     /// Frames between keyframes at most (the frame rate).
     pub max_frames: usize,
     /// Keyframes local mapping has not finished (0: idle, ORB-SLAM3's
     /// `AcceptKeyFrames`).
     pub mapping_queue: usize,
-}
-
-/// The most local-map inliers any frame tracked while `keyframe` was its
-/// reference, the keyframe's own frame included.
-///
-/// ORB-SLAM3's `NeedNewKeyFrame` compares the frame's inliers with the
-/// reference keyframe's points seen by at least 3 keyframes
-/// (`TrackedMapPoints(nMinObs)`), as a measure of how far the view has
-/// moved from the keyframe. That count includes the observations local
-/// mapping adds after the keyframe is inserted (fusion, triangulation),
-/// which the next frames can only partly re-find: a detector whose
-/// keypoints repeat less from frame to frame (SuperPoint with ANMS) starts
-/// below the 75 % ratio with almost no motion. On 7-Scenes kitchen frames
-/// 0–119 (`RUST_LOG=spslam::tracking::keyframe=trace`): the frame after a
-/// SuperPoint keyframe tracked 0.71–0.88 of its reference's points where
-/// ORB's tracked 1.06–1.60, and SuperPoint made 95 keyframes to ORB's 11.
-/// Capping the reference count (RGB-D: see [`needs_keyframe`]) at what tracking reached
-/// with this reference keeps ORB-SLAM3's rule where every point is re-found (ORB)
-/// and measures the view's change, not the detector's repeatability,
-/// where not.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct ReferenceBaseline {
-    /// The reference keyframe.
-    pub keyframe: KeyFrameId,
-    /// The most inliers a frame tracked with it.
-    pub best_inliers: usize,
-}
-
-impl ReferenceBaseline {
-    /// The baseline after a frame with `inliers` tracked against
-    /// `reference`: kept and raised for the same reference, restarted for
-    /// another.
-    pub fn after(previous: Option<Self>, reference: KeyFrameId, inliers: usize) -> Self {
-        match previous {
-            Some(b) if b.keyframe == reference => Self {
-                keyframe: reference,
-                best_inliers: b.best_inliers.max(inliers),
-            },
-            _ => Self {
-                keyframe: reference,
-                best_inliers: inliers,
-            },
-        }
-    }
-
-    /// The baseline for `reference`, if this one is for it.
-    pub fn for_reference(previous: Option<Self>, reference: KeyFrameId) -> Option<usize> {
-        previous
-            .filter(|b| b.keyframe == reference)
-            .map(|b| b.best_inliers)
-    }
 }
 
 /// A busy local mapping still takes a keyframe while fewer than this many
@@ -165,7 +110,7 @@ pub(crate) fn needs_keyframe(
     } else {
         3
     };
-    let reference_points = map.keyframe(ctx.reference).map_or(0, |kf| {
+    let reference_matches = map.keyframe(ctx.reference).map_or(0, |kf| {
         kf.observed_points()
             .filter(|(_, p)| {
                 map.map_point(*p)
@@ -173,16 +118,6 @@ pub(crate) fn needs_keyframe(
             })
             .count()
     });
-    // RGB-D only: stereo and monocular keep ORB-SLAM3's count. Capped at
-    // the baseline, the synthetic monocular street (`tests/slam_mono.rs`)
-    // had its keyframes too late (a frame lost, ATE 3.1 % of the path), and
-    // the stereo lap of the city block with SuperPoint on 8 levels
-    // (`tests/slam_superpoint_loop.rs`) drifted to ATE 1.19 m (bound 1 m),
-    // while KITTI 06 was unchanged (0.085 m).
-    let reference_matches = match ctx.reference_baseline {
-        Some(b) if rig.sensor == Sensor::Rgbd => reference_points.min(b),
-        _ => reference_points,
-    };
     let (mut tracked_close, mut untracked_close) = (0usize, 0usize);
     for i in 0..frame.len() {
         if frame.depth(i).is_some_and(|d| d < rig.close_depth) {
@@ -213,7 +148,6 @@ pub(crate) fn needs_keyframe(
     tracing::trace!(
         frame = frame.index,
         inliers = ctx.inliers,
-        reference_points,
         reference_matches,
         tracked_close,
         untracked_close,

@@ -4,7 +4,7 @@
 
 use nalgebra::Vector3;
 
-use super::keyframe::{needs_keyframe, KeyFrameContext, ReferenceBaseline};
+use super::keyframe::{needs_keyframe, KeyFrameContext};
 use super::relocalise::relocalise;
 use crate::optim::LieGroup;
 use crate::test_world::{pose_at, PointWorld};
@@ -120,7 +120,6 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
             last_keyframe_frame: frame.index - row.frames_since_keyframe,
             last_relocalisation_frame: None,
             inliers: (row.inliers * r).round() as usize,
-            reference_baseline: None,
             max_frames: 10,
             mapping_queue: row.queue,
         };
@@ -139,7 +138,6 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         last_keyframe_frame: frame.index - 1,
         last_relocalisation_frame: Some(frame.index - 2),
         inliers: (0.6 * r) as usize,
-        reference_baseline: None,
         max_frames: 10,
         mapping_queue: 0,
     };
@@ -156,57 +154,6 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         !needs_keyframe(&frame, &map, &world.rig, &ctx),
         "recently relocalised"
     );
-    // RGB-D: the reference's points that tracking never re-found do not count:
-    // 60 % of the reference's points is 80 % of the best a frame reached
-    // with it (75 % of the reference), so no keyframe; 50 % is 67 % of it.
-    let mut rgbd = world.rig;
-    rgbd.sensor = crate::camera::Sensor::Rgbd;
-    let baseline = (0.75 * r).round() as usize;
-    for (inliers, expected, rig) in [
-        (0.6, false, &rgbd),
-        (0.5, true, &rgbd),
-        (0.6, true, &world.rig),
-    ] {
-        let ctx = KeyFrameContext {
-            reference,
-            last_keyframe_frame: frame.index - 1,
-            last_relocalisation_frame: None,
-            inliers: (inliers * r).round() as usize,
-            reference_baseline: Some(baseline),
-            max_frames: 10,
-            mapping_queue: 0,
-        };
-        assert_eq!(
-            needs_keyframe(&frame, &map, rig, &ctx),
-            expected,
-            "{inliers} of the reference's points, baseline 0.75, {:?}",
-            rig.sensor
-        );
-    }
-    // A baseline above the reference's count changes nothing (ORB-SLAM3's rule).
-    let ctx = KeyFrameContext {
-        reference,
-        last_keyframe_frame: frame.index - 1,
-        last_relocalisation_frame: None,
-        inliers: (0.7 * r).round() as usize,
-        reference_baseline: Some((1.3 * r) as usize),
-        max_frames: 10,
-        mapping_queue: 0,
-    };
-    assert!(needs_keyframe(&frame, &map, &rgbd, &ctx));
-}
-
-#[test]
-fn reference_baseline_keeps_the_best_per_reference() {
-    let (a, b) = (crate::map::KeyFrameId(4), crate::map::KeyFrameId(7));
-    let first = ReferenceBaseline::after(None, a, 300);
-    assert_eq!(ReferenceBaseline::for_reference(Some(first), a), Some(300));
-    assert_eq!(ReferenceBaseline::for_reference(Some(first), b), None);
-    let higher = ReferenceBaseline::after(Some(first), a, 420);
-    let lower = ReferenceBaseline::after(Some(higher), a, 200);
-    assert_eq!(lower.best_inliers, 420, "the best is kept");
-    let other = ReferenceBaseline::after(Some(lower), b, 150);
-    assert_eq!((other.keyframe, other.best_inliers), (b, 150), "restarted");
 }
 
 #[test]

@@ -7,9 +7,7 @@ use crate::map::{KeyFrameId, Map, MapPointId, SharedMap};
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
-use super::keyframe::{
-    initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext, ReferenceBaseline,
-};
+use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext};
 use super::local_map::track_local_map;
 use super::mono_init::MonoInitialiser;
 use super::motion::{track_reference_keyframe, track_with_motion_model};
@@ -71,8 +69,6 @@ pub struct Tracker {
     last_relative: Option<(KeyFrameId, Se3)>,
     velocity: Option<Se3>,
     reference: Option<KeyFrameId>,
-    /// What tracking reached with the reference keyframe (the keyframe rule's baseline).
-    reference_baseline: Option<ReferenceBaseline>,
     last_keyframe_frame: usize,
     last_relocalisation_frame: Option<usize>,
     /// Index of the first frame of the current loss.
@@ -110,7 +106,6 @@ impl Tracker {
             last_relative: None,
             velocity: None,
             reference: None,
-            reference_baseline: None,
             last_keyframe_frame: 0,
             last_relocalisation_frame: None,
             lost_since: None,
@@ -205,7 +200,6 @@ impl Tracker {
             let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
             let (kf, created) = insert_keyframe(&mut frame, &mut map, &self.rig)?;
             self.reference = Some(kf);
-            self.reference_baseline = Some(ReferenceBaseline::after(None, kf, outcome.inliers));
             self.last_keyframe_frame = frame.index;
             outcome.new_keyframe = Some((kf, created));
             outcome.relative_pose = Some((kf, Se3::identity()));
@@ -332,22 +326,11 @@ impl Tracker {
                 last_keyframe_frame: self.last_keyframe_frame,
                 last_relocalisation_frame: self.last_relocalisation_frame,
                 inliers,
-                reference_baseline: ReferenceBaseline::for_reference(
-                    self.reference_baseline,
-                    reference,
-                ),
                 max_frames: self.max_frames,
                 mapping_queue,
             };
             needs_keyframe(&frame, map, &self.rig, &ctx)
         });
-        if let Some(reference) = self.reference {
-            self.reference_baseline = Some(ReferenceBaseline::after(
-                self.reference_baseline,
-                reference,
-                inliers,
-            ));
-        }
         let relative_pose = self.relative_to_reference(&frame, map)?;
         let outcome = TrackOutcome {
             state: self.state,
@@ -396,7 +379,6 @@ impl Tracker {
         };
         self.state = TrackingState::Ok;
         self.reference = Some(kf);
-        self.reference_baseline = None;
         self.last_keyframe_frame = frame.index;
         let inliers = frame.tracked_count();
         let created: Vec<MapPointId> = frame.map_points.iter().flatten().copied().collect();
