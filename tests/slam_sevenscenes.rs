@@ -13,8 +13,10 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
+
+use common::temp_dir::TempDir;
 
 /// Frames of the excerpt run (half of it: the suite's time).
 const FRAMES: &str = "150";
@@ -28,29 +30,10 @@ struct Outcome {
     ate_se3_m: f64,
 }
 
-/// A fresh folder under the system's temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let dir =
-            std::env::temp_dir().join(format!("spslam-sevenscenes-{}-{tag}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap_or_else(|e| panic!("create {}: {e}", dir.display()));
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// `spslam run` on the kitchen frames (RGB-D, mapping inline so that the
 /// run is deterministic, no loop closing: the excerpt has no revisit).
 fn run(kitchen: &Path, extractor: &str) -> Outcome {
-    let out = TempDir::new(extractor);
+    let out = TempDir::new("sevenscenes", extractor);
     let output = Command::new(env!("CARGO_BIN_EXE_spslam"))
         .arg("run")
         .arg("--dataset")
@@ -63,7 +46,7 @@ fn run(kitchen: &Path, extractor: &str) -> Outcome {
         ))
         .args(["--inline-mapping", "--no-loop-closing", "--frames", FRAMES])
         .arg("--out")
-        .arg(&out.0)
+        .arg(out.path())
         .output()
         .unwrap_or_else(|e| panic!("spslam run: {e}"));
     assert!(
@@ -72,7 +55,7 @@ fn run(kitchen: &Path, extractor: &str) -> Outcome {
         output.status,
         String::from_utf8_lossy(&output.stderr)
     );
-    let path = out.0.join("report.json");
+    let path = out.path().join("report.json");
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let report: serde_json::Value =
         serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));

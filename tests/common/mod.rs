@@ -9,6 +9,7 @@ pub mod rng;
 pub mod sensor_runs;
 pub mod synthetic_ba;
 pub mod synthetic_slam;
+pub mod temp_dir;
 
 use spslam::features::{
     default_model_path, ExtractorConfig, GrayImage, Precision, SuperPointExtractor,
