@@ -6,10 +6,12 @@
 //!
 //! Synthetic data only (`spslam synth`), ORB features (no model needed).
 
+mod common;
+
+use common::temp_dir::TempDir;
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output, Stdio};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 use std::time::Instant;
 
@@ -20,34 +22,6 @@ const FRAMES: usize = 20;
 
 fn spslam() -> Command {
     Command::new(env!("CARGO_BIN_EXE_spslam"))
-}
-
-/// A fresh folder under the system's temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        static NEXT: AtomicUsize = AtomicUsize::new(0);
-        let n = NEXT.fetch_add(1, Ordering::SeqCst);
-        let dir = std::env::temp_dir().join(format!(
-            "spslam-run-robust-{}-{tag}-{n}",
-            std::process::id()
-        ));
-        // A leftover of an earlier process with the same id.
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("create a temp dir");
-        Self(dir)
-    }
-
-    fn path(&self) -> &Path {
-        &self.0
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 /// Writes a synthetic sequence into `root` (KITTI layout, sequence 00).
@@ -81,7 +55,7 @@ fn shared_sequence() -> Arc<TempDir> {
         return dir;
     }
     let start = Instant::now();
-    let dir = TempDir::new("sequence");
+    let dir = TempDir::new("run-robust", "sequence");
     synth(dir.path(), SEQUENCE_FRAMES, "480x360");
     eprintln!(
         "synthesised {SEQUENCE_FRAMES} frames in {:.1} s",
@@ -103,7 +77,7 @@ fn head(path: &Path, n: usize) -> String {
 fn copy_frames(n: usize, tag: &str) -> (Arc<TempDir>, TempDir) {
     let source = shared_sequence();
     let from = source.path();
-    let copy = TempDir::new(tag);
+    let copy = TempDir::new("run-robust", tag);
     let (seq_from, seq_to) = (from.join("sequences/00"), copy.path().join("sequences/00"));
     for camera in ["image_0", "image_1"] {
         std::fs::create_dir_all(seq_to.join(camera)).expect("create the image folders");
@@ -218,7 +192,7 @@ fn corrupt_frame_15(root: &Path) {
 fn corrupt_frame_is_skipped_and_the_run_is_complete() {
     let (_shared, data) = copy_frames(FRAMES, "corrupt");
     corrupt_frame_15(data.path());
-    let out = TempDir::new("corrupt-out");
+    let out = TempDir::new("run-robust", "corrupt-out");
     let output = run(data.path(), out.path(), &[]);
     assert_one_skipped(&output, out.path(), 15, "image_0/000015.png");
 }
@@ -227,7 +201,7 @@ fn corrupt_frame_is_skipped_and_the_run_is_complete() {
 fn strict_stops_at_the_corrupt_frame_and_writes_the_frames_before() {
     let (_shared, data) = copy_frames(FRAMES, "strict");
     corrupt_frame_15(data.path());
-    let out = TempDir::new("strict-out");
+    let out = TempDir::new("run-robust", "strict-out");
     let map = out.path().join("early.spmap");
     let map_arg = map.display().to_string();
     let output = run(
@@ -286,7 +260,7 @@ fn missing_right_image_is_skipped_and_counted_as_lost() {
     let (_shared, data) = copy_frames(FRAMES, "missing");
     std::fs::remove_file(data.path().join("sequences/00/image_1/000007.png"))
         .expect("remove an image");
-    let out = TempDir::new("missing-out");
+    let out = TempDir::new("run-robust", "missing-out");
     let output = run(data.path(), out.path(), &[]);
     assert_one_skipped(&output, out.path(), 7, "image_1/000007.png");
     let r = report(out.path());
@@ -296,14 +270,14 @@ fn missing_right_image_is_skipped_and_counted_as_lost() {
 #[test]
 fn image_of_another_size_is_skipped() {
     let (_shared, data) = copy_frames(FRAMES, "resized");
-    let small = TempDir::new("small");
+    let small = TempDir::new("run-robust", "small");
     synth(small.path(), 2, "240x180");
     std::fs::copy(
         small.path().join("sequences/00/image_0/000001.png"),
         data.path().join("sequences/00/image_0/000004.png"),
     )
     .expect("replace an image");
-    let out = TempDir::new("resized-out");
+    let out = TempDir::new("run-robust", "resized-out");
     let output = run(data.path(), out.path(), &[]);
     assert_one_skipped(&output, out.path(), 4, "image_0/000004.png");
     let reason = report(out.path())["unreadable_frames"][0]["reason"].clone();
@@ -316,7 +290,7 @@ fn image_of_another_size_is_skipped() {
 #[test]
 fn sigterm_writes_the_frames_processed_so_far() {
     let data = shared_sequence();
-    let out = TempDir::new("sigterm-out");
+    let out = TempDir::new("run-robust", "sigterm-out");
     let start = Instant::now();
     // The debug log marks each frame done, so that the signal comes after
     // the first frame and long before the last (60 frames, ~1-3 s).
@@ -382,7 +356,7 @@ fn sigterm_writes_the_frames_processed_so_far() {
 
 #[test]
 fn a_dataset_that_cannot_be_opened_exits_with_1() {
-    let out = TempDir::new("none-out");
+    let out = TempDir::new("run-robust", "none-out");
     let missing = out.path().join("no-such-dataset");
     let output = run(&missing, &out.path().join("out"), &[]);
     assert_eq!(output.status.code(), Some(1), "{}", logs(&output));

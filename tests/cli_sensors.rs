@@ -3,7 +3,10 @@
 //! the TUM lists and depth maps, monocular from the left images, a
 //! sensor the dataset cannot feed refused, and bad depth images named.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::temp_dir::TempDir;
+use std::path::Path;
 use std::process::{Command, Output};
 
 const FRAMES: usize = 40;
@@ -12,31 +15,13 @@ fn spslam() -> Command {
     Command::new(env!("CARGO_BIN_EXE_spslam"))
 }
 
-/// A fresh folder under the system's temp dir, removed on drop.
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(tag: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("spslam-sensors-{}-{tag}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("create a temp dir");
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// A synthetic sequence with depth maps (and TUM lists): OUT/sequences/00.
 fn synth(tag: &str) -> TempDir {
-    let dir = TempDir::new(tag);
+    let dir = TempDir::new("sensors", tag);
     let out = spslam()
         .arg("synth")
         .arg("--out")
-        .arg(&dir.0)
+        .arg(dir.path())
         .args(["--frames", &FRAMES.to_string(), "--size", "480x360"])
         .output()
         .expect("run spslam synth");
@@ -81,10 +66,10 @@ fn tracked(report: &serde_json::Value) -> usize {
 #[test]
 fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
     let data = synth("runs");
-    let sequence = data.0.join("sequences/00");
+    let sequence = data.path().join("sequences/00");
     let tum = format!("tum:{}", sequence.display());
 
-    let out = data.0.join("out-rgbd");
+    let out = data.path().join("out-rgbd");
     let output = run(&tum, &out, &[]);
     assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
     let r = report(&out);
@@ -98,8 +83,8 @@ fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
     // The block's first corner turns 11.5° a frame from frame 21 on, too
     // fast for a monocular map at this 62° field of view (it starts a new
     // map there; see EVALUATION.md): the first 20 frames test the plumbing.
-    let out = data.0.join("out-mono");
-    let synth_dataset = format!("synth:{}", data.0.display());
+    let out = data.path().join("out-mono");
+    let synth_dataset = format!("synth:{}", data.path().display());
     let output = run(
         &synth_dataset,
         &out,
@@ -124,7 +109,7 @@ fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
     );
     assert!(r["drift"].is_null(), "no metric drift for monocular");
 
-    let out = data.0.join("out-synth-rgbd");
+    let out = data.path().join("out-synth-rgbd");
     let output = run(
         &synth_dataset,
         &out,
@@ -133,7 +118,11 @@ fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
     assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
     assert_eq!(report(&out)["sensor"], "rgbd");
 
-    let output = run(&tum, &data.0.join("out-stereo"), &["--sensor", "stereo"]);
+    let output = run(
+        &tum,
+        &data.path().join("out-stereo"),
+        &["--sensor", "stereo"],
+    );
     assert_eq!(output.status.code(), Some(1), "{}", logs(&output));
     assert!(
         logs(&output).contains("needs right images"),
@@ -145,22 +134,26 @@ fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
 #[test]
 fn bad_depth_images_are_named_and_skipped_or_refused() {
     let data = synth("bad-depth");
-    let sequence = data.0.join("sequences/00");
+    let sequence = data.path().join("sequences/00");
     // An 8-bit image where frame 5's depth should be, a smaller one at 9.
     let gray = sequence.join("image_0/000005.png");
     std::fs::copy(&gray, sequence.join("depth/000005.png")).expect("copy");
-    let small = data.0.join("small.png");
+    let small = data.path().join("small.png");
     let out = spslam()
         .arg("synth")
         .arg("--out")
-        .arg(data.0.join("small"))
+        .arg(data.path().join("small"))
         .args(["--frames", "1", "--size", "320x240"])
         .output()
         .expect("run spslam synth");
     assert!(out.status.success());
-    std::fs::copy(data.0.join("small/sequences/00/depth/000000.png"), &small).expect("copy");
+    std::fs::copy(
+        data.path().join("small/sequences/00/depth/000000.png"),
+        &small,
+    )
+    .expect("copy");
     std::fs::copy(&small, sequence.join("depth/000009.png")).expect("copy");
-    let out = data.0.join("out");
+    let out = data.path().join("out");
     let output = run(&format!("tum:{}", sequence.display()), &out, &[]);
     let text = logs(&output);
     assert_eq!(output.status.code(), Some(0), "{text}");
@@ -182,7 +175,7 @@ fn bad_depth_images_are_named_and_skipped_or_refused() {
 
     // A wrong DepthMapFactor (1: the PNGs' 5000 units read as metres) is
     // refused before the run starts, naming the file and the key.
-    let settings = data.0.join("wrong_factor.yaml");
+    let settings = data.path().join("wrong_factor.yaml");
     std::fs::write(
         &settings,
         "%YAML:1.0\nCamera.fx: 300.0\nCamera.fy: 300.0\nCamera.cx: 239.5\nCamera.cy: 179.5\nCamera.bf: 40.0\nDepthMapFactor: 1.0\n",
@@ -190,7 +183,7 @@ fn bad_depth_images_are_named_and_skipped_or_refused() {
     .expect("write settings");
     let output = run(
         &format!("tum:{}", sequence.display()),
-        &data.0.join("out-factor"),
+        &data.path().join("out-factor"),
         &["--settings", settings.to_str().unwrap_or_default()],
     );
     let text = logs(&output);
