@@ -4,10 +4,16 @@
 Reads OUT/<sequence>_<precision>_l<levels>/report.json. Standard library only.
 """
 import json
+import math
 import sys
 from pathlib import Path
 
-from evaluation_table import spread
+
+def spread(run: Path):
+    """The largest distance between two estimated positions (m)."""
+    rows = [l.split() for l in (run / "trajectory_tum.txt").read_text().splitlines() if l and l[0] != "#"]
+    pts = [tuple(map(float, r[1:4])) for r in rows]
+    return max(math.dist(a, b) for a in pts for b in pts)
 
 SEQUENCES = [
     ("kitti", "KITTI 06 excerpt (51 frames)"),

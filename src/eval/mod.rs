@@ -3,6 +3,7 @@
 //! and plots. Independent of the SLAM core.
 
 pub mod ate;
+pub mod bar_plot;
 pub mod error;
 pub mod format;
 pub mod io;
@@ -18,6 +19,7 @@ pub mod trajectory;
 pub mod umeyama;
 
 pub use ate::{align, ate, Alignment, AteResult};
+pub use bar_plot::{write_grouped_bar_plot, BarSeries};
 pub use error::{EvalError, Result};
 pub use format::TrajectoryFormat;
 pub use io::{

@@ -88,7 +88,7 @@ const FONT_CANDIDATES: [&str; 2] = [
 /// Registers a TrueType font as "sans-serif" once per process. The font is
 /// read at run time (pure Rust rendering: the library links no freetype or
 /// fontconfig, which matters for the C++ users of `libspslam.a`).
-fn ensure_font(path: &Path) -> Result<()> {
+pub(super) fn ensure_font(path: &Path) -> Result<()> {
     static REGISTERED: std::sync::OnceLock<std::result::Result<(), String>> =
         std::sync::OnceLock::new();
     let outcome = REGISTERED.get_or_init(|| {
@@ -112,7 +112,7 @@ fn ensure_font(path: &Path) -> Result<()> {
     outcome.clone().map_err(|message| plot_error(path, message))
 }
 
-fn plot_error(path: &Path, e: impl std::fmt::Display) -> EvalError {
+pub(super) fn plot_error(path: &Path, e: impl std::fmt::Display) -> EvalError {
     EvalError::Plot {
         path: path.to_path_buf(),
         message: e.to_string(),

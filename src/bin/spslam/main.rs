@@ -1,6 +1,7 @@
 //! The `spslam` command line: one module per subcommand.
 
 mod eval;
+mod evaluate;
 mod extract;
 mod loops;
 mod map;
@@ -28,6 +29,9 @@ enum Command {
     Extract(extract::ExtractArgs),
     /// Evaluate an estimated trajectory against ground truth (KITTI metric, ATE, RPE).
     Eval(eval::EvalArgs),
+    /// The evaluation suite: run the cases of a case list (several at a
+    /// time, skipping finished ones) and write the summary tables.
+    Evaluate(evaluate::EvaluateArgs),
     /// Run stereo SLAM over a sequence and write its trajectory and report.
     Run(run::RunArgs),
     /// Write a synthetic stereo/RGB-D sequence with exact ground truth (KITTI layout).
@@ -68,6 +72,7 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Extract(args) => extract::run_extract(args).map(success),
         Command::Eval(args) => eval::run_eval(args).map(success),
+        Command::Evaluate(args) => evaluate::run_evaluate(args).map(success),
         Command::Synth(args) => synth::run_synth(args).map(success),
         Command::Run(args) => run::run_slam(args),
         Command::Vocab(args) => vocab::run_vocab(args).map(success),

@@ -1,0 +1,235 @@
+//! `spslam evaluate`: the evaluation suite. Runs the cases of a case list
+//! (`suite/cases.txt`: synthetic scenes and real sequences, each extractor
+//! and sensor) as `spslam run` processes, several at a time, skipping the
+//! finished ones, and writes the summary tables from their report.json
+//! files (`OUT/summary.md`, `OUT/summary.json`, and with `--update-doc`
+//! the generated block of `EVALUATION.md`).
+
+mod cases;
+mod layout;
+mod machine;
+mod record;
+mod runner;
+mod summary;
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+
+use cases::{Case, CaseList, Substitutions};
+use layout::SuiteLayout;
+use runner::Runner;
+
+/// The arguments of `spslam evaluate`.
+#[derive(clap::Args)]
+pub struct EvaluateArgs {
+    /// The case list.
+    #[arg(long, default_value = "suite/cases.txt")]
+    cases: PathBuf,
+    /// Output folder: OUT/scenes, OUT/runs, OUT/summary.md.
+    #[arg(long, default_value = "out/suite")]
+    out: PathBuf,
+    /// The set of cases to run: quick, standard (see the case list) or all.
+    #[arg(long, default_value = "standard")]
+    set: String,
+    /// Only this case (repeatable), instead of a set.
+    #[arg(long = "case", value_name = "NAME")]
+    only: Vec<String>,
+    /// Cases run at once, each as its own `spslam run` process.
+    #[arg(long, default_value_t = 1)]
+    jobs: usize,
+    /// Run the finished cases again (by default a case that completed with
+    /// its current definition is not re-run).
+    #[arg(long)]
+    rerun: bool,
+    /// Print one shell command per case and run nothing: hand the lines to
+    /// a scheduler (a Slurm job array, GNU parallel), then run
+    /// `spslam evaluate --summary-only` with the same --out.
+    #[arg(long)]
+    list: bool,
+    /// Write the summary from the runs already in OUT; run nothing.
+    #[arg(long)]
+    summary_only: bool,
+    /// Replace the block between `<!-- spslam evaluate: begin -->` and
+    /// `<!-- spslam evaluate: end -->` in this markdown file with the summary.
+    #[arg(long, value_name = "FILE")]
+    update_doc: Option<PathBuf>,
+    /// The shared data folder `$DATA` stands for [default: SPSLAM_DATA,
+    /// else ../shared/data].
+    #[arg(long)]
+    data: Option<PathBuf>,
+}
+
+/// `path` made absolute against the current folder.
+fn absolute(path: &Path) -> Result<PathBuf> {
+    std::path::absolute(path).with_context(|| format!("resolving {}", path.display()))
+}
+
+/// A word quoted for a POSIX shell when it needs it.
+fn shell_word(word: &str) -> String {
+    let plain = word
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || "-_./:=@,+".contains(c));
+    if plain && !word.is_empty() {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
+}
+
+/// Checks that the data the cases need is there, before anything runs.
+fn check_data(cases: &[&Case], data: &Path) -> Result<()> {
+    let needs_data: Vec<&str> = cases
+        .iter()
+        .filter(|c| c.dataset.contains("$DATA"))
+        .map(|c| c.name.as_str())
+        .collect();
+    if !needs_data.is_empty() && !data.is_dir() {
+        bail!(
+            "the shared data folder {} does not exist; cases {} need it: set SPSLAM_DATA or --data",
+            data.display(),
+            needs_data.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Runs `spslam evaluate`.
+pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
+    let list = CaseList::read(&args.cases)?;
+    let cases = list
+        .select(&args.set, &args.only)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.cases.display()))?;
+    let out = absolute(&args.out)?;
+    let layout = SuiteLayout::new(&out);
+    let data = match &args.data {
+        Some(d) => d.clone(),
+        None => std::env::var_os("SPSLAM_DATA")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from("../shared/data")),
+    };
+    let data = absolute(&data)?;
+    let exe = std::env::current_exe().context("finding the spslam executable")?;
+
+    if args.list {
+        let case_list = absolute(&args.cases)?;
+        for case in &cases {
+            let words = [
+                exe.to_string_lossy().into_owned(),
+                "evaluate".into(),
+                "--cases".into(),
+                case_list.to_string_lossy().into_owned(),
+                "--out".into(),
+                out.to_string_lossy().into_owned(),
+                "--data".into(),
+                data.to_string_lossy().into_owned(),
+                "--case".into(),
+                case.name.clone(),
+            ];
+            println!("{}", words.map(|w| shell_word(&w)).join(" "));
+        }
+        return Ok(());
+    }
+
+    let case_dir = args
+        .cases
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let runner = Runner {
+        exe,
+        layout: &layout,
+        list: &list,
+        substitutions: Substitutions {
+            data: data.clone(),
+            suite: absolute(case_dir)?,
+            scenes: layout.scenes(),
+        },
+        commit: machine::commit_of(case_dir),
+        machine: machine::machine_description(),
+    };
+
+    let mut failures = Vec::new();
+    if !args.summary_only {
+        check_data(&cases, &data)?;
+        let pending: Vec<&Case> = cases
+            .iter()
+            .copied()
+            .filter(|c| args.rerun || !runner.is_finished(c))
+            .collect();
+        let done = cases.len() - pending.len();
+        if done > 0 {
+            eprintln!(
+                "{done} of {} cases already finished with their current definition (--rerun runs them again)",
+                cases.len()
+            );
+        }
+        let mut scenes: Vec<&str> = pending.iter().filter_map(|c| c.scene.as_deref()).collect();
+        scenes.sort_unstable();
+        scenes.dedup();
+        for name in scenes {
+            if let Some(scene) = list.scenes.get(name) {
+                eprintln!("scene {name}: spslam synth {}", scene.synth_args.join(" "));
+                runner.ensure_scene(scene)?;
+            }
+        }
+        for outcome in runner.run_all(&pending, args.jobs)? {
+            if outcome.exit_code != Some(0) {
+                failures.push(outcome.name);
+            }
+        }
+    }
+
+    let (rows, missing) = summary::collect(&layout, &cases);
+    let set_name = if args.only.is_empty() {
+        args.set.clone()
+    } else {
+        args.only.join(",")
+    };
+    let markdown = summary::markdown(&rows, &missing, &set_name);
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    let summary_md = out.join("summary.md");
+    std::fs::write(&summary_md, &markdown)
+        .with_context(|| format!("writing {}", summary_md.display()))?;
+    let summary_json = out.join("summary.json");
+    let json = serde_json::json!({ "runs": rows, "missing": missing });
+    std::fs::write(&summary_json, serde_json::to_string_pretty(&json)? + "\n")
+        .with_context(|| format!("writing {}", summary_json.display()))?;
+    let plot = out.join("summary_ate.png");
+    if !rows.is_empty() {
+        summary::write_plot(&rows, &plot)?;
+    }
+    println!("{markdown}");
+    eprintln!(
+        "summary: {}, {} and {}",
+        summary_md.display(),
+        summary_json.display(),
+        plot.display()
+    );
+
+    if let Some(doc) = &args.update_doc {
+        let text =
+            std::fs::read_to_string(doc).with_context(|| format!("reading {}", doc.display()))?;
+        let Some(updated) = summary::replace_block(&text, &markdown) else {
+            bail!(
+                "{} has no block to replace: put the lines `{}` and `{}` where the summary goes",
+                doc.display(),
+                summary::BEGIN_MARKER,
+                summary::END_MARKER
+            );
+        };
+        std::fs::write(doc, updated).with_context(|| format!("writing {}", doc.display()))?;
+        eprintln!("updated the generated block of {}", doc.display());
+    }
+
+    if !failures.is_empty() {
+        bail!(
+            "{} of {} cases did not complete: {} (their logs are in {})",
+            failures.len(),
+            cases.len(),
+            failures.join(", "),
+            layout.runs().display()
+        );
+    }
+    Ok(())
+}

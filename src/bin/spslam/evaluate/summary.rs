@@ -1,0 +1,385 @@
+//! The suite's summary: one row per run from its report.json, a table per
+//! group with the extractors side by side and which one wins, as markdown.
+
+use std::collections::BTreeSet;
+use std::fmt::Write as _;
+
+use serde::Serialize;
+use serde_json::Value;
+use spslam::eval::{write_grouped_bar_plot, BarSeries};
+
+use super::cases::Case;
+use super::layout::SuiteLayout;
+use super::record::CaseRecord;
+
+/// What the summary shows of one run.
+#[derive(Debug, Clone, Serialize)]
+pub struct RunRow {
+    /// The case.
+    pub case: String,
+    /// Its group.
+    pub group: String,
+    /// `ORB`, `SuperPoint` or `SuperPoint + ANMS`.
+    pub extractor: String,
+    /// `mono`, `stereo` or `rgbd`.
+    pub sensor: String,
+    /// Frames requested.
+    pub frames: u64,
+    /// Frames tracked.
+    pub tracked: u64,
+    /// Relocalisations.
+    pub relocalisations: u64,
+    /// Maps in the atlas at the end.
+    pub maps: u64,
+    /// Keyframes inserted.
+    pub keyframes: u64,
+    /// ATE RMSE, m: SE(3)-aligned, Sim(3)-aligned for monocular runs.
+    pub ate_m: Option<f64>,
+    /// `SE3` or `Sim3`.
+    pub alignment: &'static str,
+    /// Length of the ground-truth path, m.
+    pub path_m: Option<f64>,
+    /// Final-position drift, % of the path.
+    pub drift_percent: Option<f64>,
+    /// Wall time per frame, ms.
+    pub ms_per_frame: f64,
+    /// Loops closed.
+    pub loops: u64,
+    /// Maps merged.
+    pub merges: u64,
+    /// Whether every frame was processed.
+    pub complete: bool,
+    /// The commit and machine of the run.
+    pub commit: String,
+    /// The machine.
+    pub machine: String,
+}
+
+/// A case that has no usable report.
+#[derive(Debug, Clone, Serialize)]
+pub struct MissingRun {
+    /// The case.
+    pub case: String,
+    /// Why: not run, failed (exit code), unreadable report.
+    pub why: String,
+}
+
+/// The rows of the runs that have a report, and the cases that have none.
+pub fn collect(layout: &SuiteLayout, cases: &[&Case]) -> (Vec<RunRow>, Vec<MissingRun>) {
+    let mut rows = Vec::new();
+    let mut missing = Vec::new();
+    for case in cases {
+        let record = CaseRecord::read(&layout.case_record(&case.name)).ok();
+        let report = std::fs::read_to_string(layout.report(&case.name))
+            .ok()
+            .and_then(|t| serde_json::from_str::<Value>(&t).ok());
+        match (report, record) {
+            (Some(report), Some(record)) => match row_of(case, &report, &record) {
+                Some(row) => rows.push(row),
+                None => missing.push(MissingRun {
+                    case: case.name.clone(),
+                    why: "its report.json has no summary".into(),
+                }),
+            },
+            (_, record) => missing.push(MissingRun {
+                case: case.name.clone(),
+                why: match record {
+                    None => "not run".into(),
+                    Some(r) => format!(
+                        "spslam run ended with {} and wrote no report; see {}",
+                        r.exit_code
+                            .map_or("a signal".into(), |c| format!("exit code {c}")),
+                        layout.log(&case.name).display()
+                    ),
+                },
+            }),
+        }
+    }
+    (rows, missing)
+}
+
+/// The extractor as the tables name it.
+fn extractor_label(report: &Value) -> String {
+    // `orb`, `superpoint` or `superpoint+anms-<method>`.
+    let extractor = report["extractor"].as_str().unwrap_or("?");
+    if extractor == "orb" {
+        "ORB".into()
+    } else if extractor.starts_with("superpoint+anms") {
+        "SuperPoint + ANMS".into()
+    } else if extractor.starts_with("superpoint") {
+        "SuperPoint".into()
+    } else {
+        extractor.into()
+    }
+}
+
+fn row_of(case: &Case, report: &Value, record: &CaseRecord) -> Option<RunRow> {
+    let summary = report.get("summary").filter(|s| !s.is_null())?;
+    let count = |v: &Value| v.as_u64().unwrap_or(0);
+    let sensor = report["sensor"].as_str().unwrap_or("?").to_string();
+    let mono = sensor == "mono";
+    let ate = &report["evaluation"]["ate"];
+    let ate_m = if mono {
+        ate["sim3_rmse"].as_f64()
+    } else {
+        ate["se3_rmse"].as_f64()
+    };
+    Some(RunRow {
+        case: case.name.clone(),
+        group: case.group.clone(),
+        extractor: extractor_label(report),
+        sensor,
+        frames: count(&report["frames_total"]),
+        tracked: count(&summary["tracked"]),
+        relocalisations: count(&summary["relocalisations"]),
+        maps: summary["maps"].as_array().map_or(0, |m| m.len() as u64),
+        keyframes: count(&summary["keyframes_inserted"]),
+        ate_m,
+        alignment: if mono { "Sim3" } else { "SE3" },
+        path_m: report["evaluation"]["path_length_m"].as_f64(),
+        drift_percent: report["drift"]["percent"].as_f64(),
+        ms_per_frame: report["wall_ms_per_frame"].as_f64().unwrap_or(f64::NAN),
+        loops: report["loops"].as_array().map_or(0, |l| l.len() as u64),
+        merges: report["merges"].as_array().map_or(0, |l| l.len() as u64),
+        complete: report["complete"].as_bool().unwrap_or(false),
+        commit: record.commit.clone(),
+        machine: record.machine.clone(),
+    })
+}
+
+/// The extractors in the order of the tables' columns.
+const EXTRACTORS: [&str; 3] = ["ORB", "SuperPoint", "SuperPoint + ANMS"];
+
+/// Better run first: more frames tracked, then the lower ATE.
+fn better(a: &RunRow, b: &RunRow) -> std::cmp::Ordering {
+    b.tracked.cmp(&a.tracked).then(
+        a.ate_m
+            .unwrap_or(f64::INFINITY)
+            .total_cmp(&b.ate_m.unwrap_or(f64::INFINITY)),
+    )
+}
+
+/// Who wins a group and by how much, in words.
+pub fn verdict(rows: &[&RunRow]) -> String {
+    let mut sorted: Vec<&RunRow> = rows.to_vec();
+    sorted.sort_by(|a, b| better(a, b));
+    let [best, runner_up, ..] = sorted.as_slice() else {
+        return "one extractor only".into();
+    };
+    if best.tracked != runner_up.tracked {
+        return format!(
+            "{} (tracks {} more frames than {})",
+            best.extractor,
+            best.tracked - runner_up.tracked,
+            runner_up.extractor
+        );
+    }
+    match (best.ate_m, runner_up.ate_m) {
+        (Some(a), Some(b)) if b > 0.0 => {
+            let percent = 100.0 * (b - a) / b;
+            if percent < 5.0 {
+                format!(
+                    "tie: {} and {} within 5 % ({percent:.1} %)",
+                    best.extractor, runner_up.extractor
+                )
+            } else {
+                format!(
+                    "{} ({percent:.0} % lower ATE than {})",
+                    best.extractor, runner_up.extractor
+                )
+            }
+        }
+        _ => "no ATE to compare".into(),
+    }
+}
+
+fn cell(row: Option<&&RunRow>) -> String {
+    match row {
+        None => "–".into(),
+        Some(r) => {
+            let ate = r.ate_m.map_or("n/a".into(), |a| format!("{a:.4}"));
+            format!("{ate} ({}/{}, {} KF)", r.tracked, r.frames, r.keyframes)
+        }
+    }
+}
+
+/// Distinct values of one field, joined.
+fn distinct(rows: &[RunRow], field: impl Fn(&RunRow) -> &str) -> String {
+    let set: BTreeSet<&str> = rows.iter().map(field).collect();
+    set.into_iter().collect::<Vec<_>>().join("; ")
+}
+
+/// The summary as markdown: provenance, a table per group, every run.
+pub fn markdown(rows: &[RunRow], missing: &[MissingRun], set: &str) -> String {
+    let mut md = String::new();
+    let _ = writeln!(
+        md,
+        "Generated by `spslam evaluate` from {} run reports (set `{set}`); commit {}; machine: {}.\n",
+        rows.len(),
+        distinct(rows, |r| &r.commit),
+        distinct(rows, |r| &r.machine),
+    );
+    let _ = writeln!(
+        md,
+        "Cells: ATE RMSE in m (SE3-aligned; Sim3 for monocular runs) (tracked/frames, keyframes). \
+         The winner tracks the most frames, then has the lowest ATE; under 5 % apart is a tie.\n"
+    );
+    let _ = writeln!(
+        md,
+        "| Group | ORB | SuperPoint | SuperPoint + ANMS | Winner |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|");
+    for group in &group_order(rows) {
+        let in_group: Vec<&RunRow> = rows.iter().filter(|r| r.group == *group).collect();
+        let find = |name: &str| in_group.iter().find(|r| r.extractor == name);
+        let _ = writeln!(
+            md,
+            "| {group} | {} | {} | {} | {} |",
+            cell(find(EXTRACTORS[0])),
+            cell(find(EXTRACTORS[1])),
+            cell(find(EXTRACTORS[2])),
+            verdict(&in_group)
+        );
+    }
+    let _ = writeln!(md, "\nEvery run:\n");
+    let _ = writeln!(
+        md,
+        "| Case | Sensor | Extractor | Tracked | Relocalised | Maps | Keyframes | ATE (m) | Drift | ms/frame | Loops | Merges |"
+    );
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for r in rows {
+        let ate = r
+            .ate_m
+            .map_or("n/a".into(), |a| format!("{a:.4} {}", r.alignment));
+        let drift = r.drift_percent.map_or("–".into(), |d| format!("{d:.2} %"));
+        let incomplete = if r.complete { "" } else { " (incomplete)" };
+        let _ = writeln!(
+            md,
+            "| {}{incomplete} | {} | {} | {}/{} | {} | {} | {} | {ate} | {drift} | {:.0} | {} | {} |",
+            r.case, r.sensor, r.extractor, r.tracked, r.frames, r.relocalisations, r.maps,
+            r.keyframes, r.ms_per_frame, r.loops, r.merges
+        );
+    }
+    if !missing.is_empty() {
+        let _ = writeln!(md, "\nCases without a report:\n");
+        for m in missing {
+            let _ = writeln!(md, "- {}: {}", m.case, m.why);
+        }
+    }
+    md
+}
+
+/// Writes the ATE of every run as % of its path, a cluster per group and
+/// a bar per extractor.
+pub fn write_plot(rows: &[RunRow], path: &std::path::Path) -> spslam::eval::Result<()> {
+    let groups = group_order(rows);
+    let series: Vec<BarSeries> = EXTRACTORS
+        .iter()
+        .map(|name| BarSeries {
+            name: (*name).to_string(),
+            values: groups
+                .iter()
+                .map(|g| {
+                    let r = rows
+                        .iter()
+                        .find(|r| &r.group == g && r.extractor == *name)?;
+                    Some(100.0 * r.ate_m? / r.path_m.filter(|p| *p > 0.0)?)
+                })
+                .collect(),
+        })
+        .collect();
+    write_grouped_bar_plot(
+        path,
+        "ATE per group and extractor (SE3; Sim3 for monocular)",
+        "ATE RMSE, % of the path length",
+        &groups,
+        &series,
+    )
+}
+
+/// The groups in the order their first run appears.
+fn group_order(rows: &[RunRow]) -> Vec<String> {
+    let mut groups: Vec<String> = Vec::new();
+    for r in rows {
+        if !groups.contains(&r.group) {
+            groups.push(r.group.clone());
+        }
+    }
+    groups
+}
+
+/// The markers of the generated block in a document.
+pub const BEGIN_MARKER: &str = "<!-- spslam evaluate: begin -->";
+/// See [`BEGIN_MARKER`].
+pub const END_MARKER: &str = "<!-- spslam evaluate: end -->";
+
+/// `document` with the text between the markers replaced by `block`, or
+/// None when the markers are missing or out of order.
+pub fn replace_block(document: &str, block: &str) -> Option<String> {
+    let begin = document.find(BEGIN_MARKER)? + BEGIN_MARKER.len();
+    let end = begin + document[begin..].find(END_MARKER)?;
+    Some(format!(
+        "{}\n{}{}",
+        &document[..begin],
+        block,
+        &document[end..]
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(extractor: &str, tracked: u64, ate: f64) -> RunRow {
+        RunRow {
+            case: format!("c_{extractor}"),
+            group: "g".into(),
+            extractor: extractor.into(),
+            sensor: "stereo".into(),
+            frames: 100,
+            tracked,
+            relocalisations: 0,
+            maps: 1,
+            keyframes: 10,
+            ate_m: Some(ate),
+            alignment: "SE3",
+            path_m: Some(100.0),
+            drift_percent: None,
+            ms_per_frame: 50.0,
+            loops: 0,
+            merges: 0,
+            complete: true,
+            commit: "abc".into(),
+            machine: "m".into(),
+        }
+    }
+
+    #[test]
+    fn the_verdict_prefers_tracked_frames_then_ate() {
+        let orb = row("ORB", 100, 0.062);
+        let sp = row("SuperPoint + ANMS", 100, 0.045);
+        assert_eq!(
+            verdict(&[&orb, &sp]),
+            "SuperPoint + ANMS (27 % lower ATE than ORB)"
+        );
+        let lost = row("SuperPoint + ANMS", 97, 0.01);
+        assert_eq!(
+            verdict(&[&orb, &lost]),
+            "ORB (tracks 3 more frames than SuperPoint + ANMS)"
+        );
+        let close = row("SuperPoint", 100, 0.060);
+        assert!(verdict(&[&orb, &close]).starts_with("tie"));
+    }
+
+    #[test]
+    fn the_block_between_the_markers_is_replaced_and_the_rest_kept() {
+        let doc = format!("intro\n{BEGIN_MARKER}\nold\n{END_MARKER}\nafter\n");
+        let new = replace_block(&doc, "new table\n").expect("markers");
+        assert_eq!(
+            new,
+            format!("intro\n{BEGIN_MARKER}\nnew table\n{END_MARKER}\nafter\n")
+        );
+        assert!(replace_block("no markers", "x").is_none());
+        assert!(replace_block(&format!("{END_MARKER}{BEGIN_MARKER}"), "x").is_none());
+    }
+}
