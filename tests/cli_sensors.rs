@@ -129,6 +129,23 @@ fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
         "{}",
         logs(&output)
     );
+
+    // A KITTI-layout sequence with the left camera only (like the shared
+    // KITTI 07 excerpt) runs as monocular by default; stereo is refused.
+    std::fs::remove_dir_all(sequence.join("image_1")).expect("remove image_1");
+    let out = data.path().join("out-left-only");
+    let output = run(&synth_dataset, &out, &["--frames", "20"]);
+    assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
+    let r = report(&out);
+    assert_eq!(r["sensor"], "mono");
+    assert!(tracked(&r) >= 10, "{}", logs(&output));
+    let output = run(
+        &synth_dataset,
+        &data.path().join("out-left-only-stereo"),
+        &["--sensor", "stereo"],
+    );
+    assert_eq!(output.status.code(), Some(1), "{}", logs(&output));
+    assert!(logs(&output).contains("no image_1/"), "{}", logs(&output));
 }
 
 #[test]

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use spslam::dataset::synthetic::{
-    write_sequence, SceneName, SyntheticConfig, SyntheticSequence, WriteOptions,
+    write_sequence, Condition, SceneName, SyntheticConfig, SyntheticSequence, WriteOptions,
 };
 
 #[derive(clap::Args)]
@@ -53,6 +53,14 @@ pub struct SynthArgs {
     /// Motion blur: sub-poses averaged per image (1 = off) [default: 1].
     #[arg(long)]
     blur: Option<usize>,
+    /// A hard condition on the images (the ground truth stays exact):
+    /// normal, light-ramp (gain 1 -> 0.4, gamma 1 -> 1.5 over the sequence),
+    /// flicker (a random gain in [0.6, 1.4] per frame), dusk (from the
+    /// second lap on, or the middle frame: dark, with shot and read noise),
+    /// low-light (dark and noisy throughout) or blackout (8 black frames
+    /// in the middle: a kidnap).
+    #[arg(long, default_value = "normal")]
+    condition: Condition,
     /// Render without noise, exposure change or blur.
     #[arg(long)]
     clean: bool,
@@ -98,6 +106,7 @@ fn config_from(args: &SynthArgs) -> SyntheticConfig {
     if args.clean {
         config = config.noiseless();
     }
+    config.condition = args.condition;
     config
 }
 

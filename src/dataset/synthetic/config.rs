@@ -5,6 +5,7 @@ use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+use super::conditions::Condition;
 use super::error::{Result, SyntheticError};
 
 /// The built-in scenes.
@@ -107,6 +108,9 @@ pub struct SyntheticConfig {
     /// Rendering threads; 0 uses every core.
     #[serde(default)]
     pub threads: usize,
+    /// A hard imaging condition (light change, low light, a kidnap).
+    #[serde(default)]
+    pub condition: Condition,
 }
 
 impl Default for SyntheticConfig {
@@ -142,6 +146,7 @@ impl SyntheticConfig {
             blur_samples: 1,
             shutter: 0.5,
             threads: 0,
+            condition: Condition::Normal,
         }
     }
 

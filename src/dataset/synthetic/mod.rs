@@ -2,7 +2,8 @@
 //! planes (a city block, a street, a ring corridor, an open highway with
 //! its texture mostly far away, a street with two look-alike places)
 //! ray-cast from a rectified stereo camera along a trajectory, with depth
-//! for RGB-D.
+//! for RGB-D, and hard conditions (light changes, low light, a kidnap) on
+//! the images.
 //!
 //! Everything is a pure function of [`SyntheticConfig`] (its seed
 //! included): the same config writes byte-identical files.
@@ -21,6 +22,7 @@
 //! lie on integer coordinates.
 
 mod camera;
+mod conditions;
 mod config;
 mod error;
 mod noise;
@@ -35,6 +37,7 @@ mod world;
 mod writer;
 
 pub use camera::StereoCamera;
+pub use conditions::{Condition, Photometry, BLACKOUT_FRAMES};
 pub use config::{SceneName, SyntheticConfig};
 pub use error::{Result, SyntheticError};
 pub use render::{render_view, View};

@@ -7,6 +7,7 @@ use std::f64::consts::TAU;
 use nalgebra::Isometry3;
 
 use super::camera::StereoCamera;
+use super::conditions::Photometry;
 use super::config::SyntheticConfig;
 use super::error::Result;
 use super::render::{render_view, View};
@@ -196,19 +197,42 @@ impl SyntheticSequence {
         (1.0 + amplitude * wave(), 60.0 * amplitude * wave())
     }
 
-    /// Applies gain, offset and Gaussian pixel noise, then rounds to 8 bits.
+    /// Frames per lap when the path is a loop.
+    fn lap_frames(&self) -> Option<usize> {
+        let trajectory = &self.scene.trajectory;
+        let lap = trajectory.shape.lap_length()?;
+        (trajectory.step > 0.0).then(|| (lap / trajectory.step).round() as usize)
+    }
+
+    /// Applies gain, offset, the condition's response curve, its noise and
+    /// Gaussian pixel noise, then rounds to 8 bits.
     fn expose(&self, gray: &[f32], gain: f64, offset: f64, index: usize, camera: u64) -> Vec<u8> {
         let sigma = self.config.pixel_noise;
         let width = self.camera.width;
         let seed = mix64(self.config.seed ^ 0x006e_6f69_7365);
+        let condition_seed = mix64(self.config.seed ^ 0x636f_6e64);
+        let photometry = self.config.condition.photometry(
+            index,
+            self.len(),
+            self.lap_frames(),
+            self.config.seed,
+        );
+        let noisy = photometry != Photometry::IDENTITY;
+        let layer = (index as u64) << 1 | camera;
         gray.iter()
             .enumerate()
             .map(|(i, &g)| {
+                let (x, y) = ((i % width) as i64, (i / width) as i64);
                 let mut value = gain * g as f64 + offset;
-                if sigma > 0.0 {
-                    let layer = (index as u64) << 1 | camera;
-                    let bits = hash_cell(seed, layer, (i % width) as i64, (i / width) as i64);
-                    value += sigma * gaussian(bits);
+                if noisy {
+                    value = photometry.apply(value);
+                    let deviation = photometry.noise_sigma(value);
+                    if deviation > 0.0 {
+                        value += deviation * gaussian(hash_cell(condition_seed, layer, x, y));
+                    }
+                }
+                if sigma > 0.0 && !photometry.black {
+                    value += sigma * gaussian(hash_cell(seed, layer, x, y));
                 }
                 value.round().clamp(0.0, 255.0) as u8
             })
@@ -270,5 +294,52 @@ mod tests {
         assert_eq!(blurred.pose, sharp.pose);
         assert_eq!(blurred.depth, sharp.depth);
         assert_ne!(blurred.left, sharp.left);
+    }
+
+    fn mean(image: &[u8]) -> f64 {
+        image.iter().map(|&v| v as f64).sum::<f64>() / image.len() as f64
+    }
+
+    #[test]
+    fn conditions_change_the_images_and_never_the_ground_truth() {
+        use crate::dataset::synthetic::conditions::{Condition, BLACKOUT_FRAMES};
+        let mut c = small(SceneName::Loop);
+        c.frames = None; // one lap + 1: the second lap starts at the last frame
+        let normal = SyntheticSequence::new(c.clone()).unwrap();
+        let lap = normal.lap_frames().expect("the loop has laps");
+        assert_eq!(normal.len(), lap + 1);
+        for condition in [Condition::Dusk, Condition::LowLight, Condition::Blackout] {
+            c.condition = condition;
+            let hard = SyntheticSequence::new(c.clone()).unwrap();
+            for index in [1, normal.len() / 2, lap] {
+                let (a, b) = (normal.render(index, true), hard.render(index, true));
+                assert_eq!(
+                    (a.pose, &a.depth),
+                    (b.pose, &b.depth),
+                    "{condition} frame {index}"
+                );
+                let ratio = mean(&b.left) / mean(&a.left);
+                let expected = match (condition, index) {
+                    (Condition::Dusk, i) if i == lap => 0.2..0.45,
+                    (Condition::LowLight, _) => 0.15..0.35,
+                    (Condition::Blackout, i) if i == normal.len() / 2 => 0.0..1e-9,
+                    _ => 0.999..1.001,
+                };
+                assert!(
+                    expected.contains(&ratio),
+                    "{condition} frame {index}: mean ratio {ratio}"
+                );
+            }
+        }
+        // The blackout lasts BLACKOUT_FRAMES frames.
+        c.condition = Condition::Blackout;
+        let kidnap = SyntheticSequence::new(c).unwrap();
+        let middle = kidnap.len() / 2;
+        assert!(kidnap
+            .render(middle + BLACKOUT_FRAMES - 1, false)
+            .left
+            .iter()
+            .all(|&v| v == 0));
+        assert!(mean(&kidnap.render(middle + BLACKOUT_FRAMES, false).left) > 20.0);
     }
 }

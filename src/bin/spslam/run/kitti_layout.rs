@@ -18,6 +18,9 @@ pub struct KittiLayout {
     pub frames: Vec<StereoFrame>,
     /// `poses/NN.txt` beside `sequences/`, when it exists.
     pub ground_truth: Option<PathBuf>,
+    /// The sequence has no `image_1/` (a left-camera-only excerpt such as
+    /// the shared KITTI 07): monocular runs only.
+    pub left_only: bool,
 }
 
 impl KittiLayout {
@@ -30,26 +33,34 @@ impl KittiLayout {
         } else {
             (dir.to_path_buf(), first_sequence(dir)?)
         };
+        let sequence_dir = if root.join("calib.txt").is_file() {
+            root.clone()
+        } else {
+            root.join("sequences").join(&name)
+        };
+        if sequence_dir.join("image_0").is_dir() && !sequence_dir.join("image_1").exists() {
+            // Left camera only: the frames are named from times.txt.
+            return Self::named_from_times(&sequence_dir).map(|layout| Self {
+                left_only: true,
+                ..layout
+            });
+        }
         match KittiSequence::open(&root, &name) {
             Ok(seq) => Ok(Self {
                 calibration: seq.calibration().clone(),
                 frames: seq.frames().to_vec(),
                 ground_truth: seq.ground_truth_path(),
+                left_only: false,
             }),
             Err(
                 e @ (DatasetError::ImageCountMismatch { .. }
                 | DatasetError::TimestampCountMismatch { .. }),
             ) => {
-                let sequence = if root.join("calib.txt").is_file() {
-                    root
-                } else {
-                    root.join("sequences").join(&name)
-                };
                 eprintln!(
                     "warning: {e}; the frames are named from times.txt (image_0/%06d.png), \
                      and missing images are skipped as unreadable"
                 );
-                Self::named_from_times(&sequence)
+                Self::named_from_times(&sequence_dir)
             }
             Err(e) => Err(e.into()),
         }
@@ -89,6 +100,7 @@ impl KittiLayout {
             calibration,
             frames,
             ground_truth: ground_truth_beside(sequence),
+            left_only: false,
         })
     }
 }

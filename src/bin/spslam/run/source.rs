@@ -167,10 +167,12 @@ impl Source {
     }
 
     /// The sensor a run uses when `--sensor` is not given: RGB-D for TUM
-    /// folders (they have no right image), stereo otherwise.
+    /// folders (they have no right image), monocular for a KITTI-layout
+    /// sequence without `image_1/`, stereo otherwise.
     pub fn default_sensor(&self) -> Sensor {
         match self {
             Self::Tum(_) => Sensor::Rgbd,
+            Self::Kitti(seq) if seq.left_only => Sensor::Monocular,
             _ => Sensor::Stereo,
         }
     }
@@ -200,6 +202,9 @@ impl Source {
                     bail!("--sensor rgbd needs depth images: this KITTI-layout sequence has no depth/ folder beside image_0/ (`spslam synth` writes one)");
                 }
                 Ok(stereo(&seq.frames, true))
+            }
+            (Self::Kitti(seq), Sensor::Stereo) if seq.left_only => {
+                bail!("--sensor stereo needs right images: this KITTI-layout sequence has no image_1/ folder (use --sensor mono)")
             }
             (Self::Kitti(seq), _) => Ok(stereo(&seq.frames, false)),
             (Self::Euroc(_), Sensor::Rgbd) => {
