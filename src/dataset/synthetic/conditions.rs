@@ -161,7 +161,8 @@ impl Condition {
                 }
             }
             Condition::Flicker => {
-                let bits = mix64(seed ^ 0x666c_6963_6b65_72 ^ (index as u64).wrapping_mul(0x9e37));
+                let bits =
+                    mix64(seed ^ 0x0066_6c69_636b_6572 ^ (index as u64).wrapping_mul(0x9e37));
                 Photometry {
                     gain: 0.6 + 0.8 * unit_from_bits(bits),
                     ..Photometry::IDENTITY
