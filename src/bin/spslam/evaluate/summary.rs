@@ -47,6 +47,9 @@ pub struct RunRow {
     pub loops: u64,
     /// Maps merged.
     pub merges: u64,
+    /// Loops and merges that join different places (over 10 m apart in
+    /// the ground truth); None without ground truth.
+    pub false_links: Option<u64>,
     /// Whether every frame was processed.
     pub complete: bool,
     /// The commit and machine of the run.
@@ -141,6 +144,12 @@ fn row_of(case: &Case, report: &Value, record: &CaseRecord) -> Option<RunRow> {
         ms_per_frame: report["wall_ms_per_frame"].as_f64().unwrap_or(f64::NAN),
         loops: report["loops"].as_array().map_or(0, |l| l.len() as u64),
         merges: report["merges"].as_array().map_or(0, |l| l.len() as u64),
+        false_links: report["links_ground_truth"].as_array().map(|links| {
+            links
+                .iter()
+                .filter(|l| l["same_place"].as_bool() == Some(false))
+                .count() as u64
+        }),
         complete: report["complete"].as_bool().unwrap_or(false),
         commit: record.commit.clone(),
         machine: record.machine.clone(),
@@ -150,13 +159,25 @@ fn row_of(case: &Case, report: &Value, record: &CaseRecord) -> Option<RunRow> {
 /// The extractors in the order of the tables' columns.
 const EXTRACTORS: [&str; 3] = ["ORB", "SuperPoint", "SuperPoint + ANMS"];
 
-/// Better run first: more frames tracked, then the lower ATE.
+/// Better run first: fewer false loops or merges, more frames tracked,
+/// then the lower ATE.
 fn better(a: &RunRow, b: &RunRow) -> std::cmp::Ordering {
-    b.tracked.cmp(&a.tracked).then(
-        a.ate_m
-            .unwrap_or(f64::INFINITY)
-            .total_cmp(&b.ate_m.unwrap_or(f64::INFINITY)),
-    )
+    let false_links = |r: &RunRow| r.false_links.unwrap_or(0);
+    let ate = |r: &RunRow| error_of(r).map_or(f64::INFINITY, |(e, _)| e);
+    false_links(a)
+        .cmp(&false_links(b))
+        .then(b.tracked.cmp(&a.tracked))
+        .then(ate(a).total_cmp(&ate(b)))
+}
+
+/// The error a run is judged by: the ATE, or the final-position drift (%)
+/// where the path cannot be aligned (a straight road), with its name.
+fn error_of(r: &RunRow) -> Option<(f64, &'static str)> {
+    match (r.ate_m, r.drift_percent) {
+        (Some(ate), _) => Some((ate, "ATE")),
+        (None, Some(drift)) => Some((drift, "drift")),
+        (None, None) => None,
+    }
 }
 
 /// Who wins a group and by how much, in words.
@@ -166,6 +187,15 @@ pub fn verdict(rows: &[&RunRow]) -> String {
     let [best, runner_up, ..] = sorted.as_slice() else {
         return "one extractor only".into();
     };
+    let false_links = |r: &RunRow| r.false_links.unwrap_or(0);
+    if false_links(best) != false_links(runner_up) {
+        return format!(
+            "{} ({} made {} false loop or merge)",
+            best.extractor,
+            runner_up.extractor,
+            false_links(runner_up) - false_links(best)
+        );
+    }
     if best.tracked != runner_up.tracked {
         return format!(
             "{} (tracks {} more frames than {})",
@@ -197,8 +227,12 @@ fn cell(row: Option<&&RunRow>) -> String {
     match row {
         None => "–".into(),
         Some(r) => {
-            let ate = r.ate_m.map_or("n/a".into(), |a| format!("{a:.4}"));
-            format!("{ate} ({}/{}, {} KF)", r.tracked, r.frames, r.keyframes)
+            let error = match error_of(r) {
+                Some((ate, "ATE")) => format!("{ate:.4}"),
+                Some((drift, _)) => format!("drift {drift:.2} %"),
+                None => "n/a".into(),
+            };
+            format!("{error} ({}/{}, {} KF)", r.tracked, r.frames, r.keyframes)
         }
     }
 }
@@ -221,8 +255,9 @@ pub fn markdown(rows: &[RunRow], missing: &[MissingRun], set: &str) -> String {
     );
     let _ = writeln!(
         md,
-        "Cells: ATE RMSE in m (SE3-aligned; Sim3 for monocular runs) (tracked/frames, keyframes). \
-         The winner tracks the most frames, then has the lowest ATE; under 5 % apart is a tie.\n"
+        "Cells: ATE RMSE in m (SE3-aligned; Sim3 for monocular runs; the final-position drift where a straight path cannot be aligned) (tracked/frames, keyframes). \
+         The winner makes no false loop or merge, then tracks the most frames, then has the lowest ATE; under 5 % apart is a tie. \
+         False links: loops and merges joining frames over 10 m apart in the ground truth.\n"
     );
     let _ = writeln!(
         md,
@@ -244,18 +279,19 @@ pub fn markdown(rows: &[RunRow], missing: &[MissingRun], set: &str) -> String {
     let _ = writeln!(md, "\nEvery run:\n");
     let _ = writeln!(
         md,
-        "| Case | Sensor | Extractor | Tracked | Relocalised | Maps | Keyframes | ATE (m) | Drift | ms/frame | Loops | Merges |"
+        "| Case | Sensor | Extractor | Tracked | Relocalised | Maps | Keyframes | ATE (m) | Drift | ms/frame | Loops | Merges | False links |"
     );
-    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in rows {
         let ate = r
             .ate_m
             .map_or("n/a".into(), |a| format!("{a:.4} {}", r.alignment));
         let drift = r.drift_percent.map_or("–".into(), |d| format!("{d:.2} %"));
         let incomplete = if r.complete { "" } else { " (incomplete)" };
+        let false_links = r.false_links.map_or("–".into(), |n| n.to_string());
         let _ = writeln!(
             md,
-            "| {}{incomplete} | {} | {} | {}/{} | {} | {} | {} | {ate} | {drift} | {:.0} | {} | {} |",
+            "| {}{incomplete} | {} | {} | {}/{} | {} | {} | {} | {ate} | {drift} | {:.0} | {} | {} | {false_links} |",
             r.case, r.sensor, r.extractor, r.tracked, r.frames, r.relocalisations, r.maps,
             r.keyframes, r.ms_per_frame, r.loops, r.merges
         );
@@ -348,6 +384,7 @@ mod tests {
             ms_per_frame: 50.0,
             loops: 0,
             merges: 0,
+            false_links: Some(0),
             complete: true,
             commit: "abc".into(),
             machine: "m".into(),
@@ -369,6 +406,12 @@ mod tests {
         );
         let close = row("SuperPoint", 100, 0.060);
         assert!(verdict(&[&orb, &close]).starts_with("tie"));
+        let mut wrong = row("ORB", 100, 0.01);
+        wrong.false_links = Some(1);
+        assert_eq!(
+            verdict(&[&wrong, &sp]),
+            "SuperPoint + ANMS (ORB made 1 false loop or merge)"
+        );
     }
 
     #[test]

@@ -27,6 +27,52 @@ pub struct RunEvaluation {
     pub drift: Option<Drift>,
     /// Scale drift (monocular).
     pub scale_drift: Option<ScaleDrift>,
+    /// The accepted loops and merges against the ground truth.
+    pub links: Vec<LinkTruth>,
+}
+
+/// Two frames joined by a loop or a merge are the same place when their
+/// true positions lie within this distance (m); farther, the link is false.
+pub const SAME_PLACE_M: f64 = 10.0;
+
+/// An accepted loop or merge checked against the ground truth.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct LinkTruth {
+    /// Timestamp of the query frame, s.
+    pub query_time: f64,
+    /// Timestamp of the matched frame, s.
+    pub match_time: f64,
+    /// Distance between the two frames' true positions, m.
+    pub distance_m: f64,
+    /// Whether they are the same place (`distance_m` ≤ [`SAME_PLACE_M`]).
+    pub same_place: bool,
+}
+
+/// The ground-truth pose nearest in time to `t`.
+fn nearest(gt: &Trajectory, t: f64) -> Option<usize> {
+    (0..gt.len()).min_by(|&a, &b| {
+        (gt.timestamps[a] - t)
+            .abs()
+            .total_cmp(&(gt.timestamps[b] - t).abs())
+    })
+}
+
+/// Each link (query, match timestamps) against the ground truth.
+fn link_truth(gt: &Trajectory, links: &[(f64, f64)]) -> Vec<LinkTruth> {
+    links
+        .iter()
+        .filter_map(|&(query_time, match_time)| {
+            let (q, m) = (nearest(gt, query_time)?, nearest(gt, match_time)?);
+            let distance_m =
+                (gt.poses[q].translation.vector - gt.poses[m].translation.vector).norm();
+            Some(LinkTruth {
+                query_time,
+                match_time,
+                distance_m,
+                same_place: distance_m <= SAME_PLACE_M,
+            })
+        })
+        .collect()
 }
 
 /// The end of a run against the ground truth, both starting at frame 0's pose.
@@ -87,6 +133,25 @@ pub fn evaluate_run(
         }
     };
     let monocular = sensor == Sensor::Monocular;
+    let links_truth = link_truth(gt, links);
+    if !links_truth.is_empty() {
+        let false_links: Vec<String> = links_truth
+            .iter()
+            .filter(|l| !l.same_place)
+            .map(|l| {
+                format!(
+                    "{:.2} s -> {:.2} s ({:.1} m apart)",
+                    l.query_time, l.match_time, l.distance_m
+                )
+            })
+            .collect();
+        text.push_str(&format!(
+            "loops and merges against the ground truth: {} of {} join the same place (within {SAME_PLACE_M} m){}\n",
+            links_truth.len() - false_links.len(),
+            links_truth.len(),
+            if false_links.is_empty() { String::new() } else { format!("; FALSE: {}", false_links.join(", ")) }
+        ));
+    }
     let drift = if source.is_kitti() && !monocular {
         final_drift(gt, trajectory)
     } else {
@@ -124,6 +189,7 @@ pub fn evaluate_run(
                 report: None,
                 drift,
                 scale_drift,
+                links: links_truth,
             });
         }
     };
@@ -153,5 +219,6 @@ pub fn evaluate_run(
         report: Some(report),
         drift,
         scale_drift,
+        links: links_truth,
     })
 }

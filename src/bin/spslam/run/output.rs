@@ -15,7 +15,7 @@ use spslam::system::{
 
 use crate::plot_plane::PlotPlaneChoice;
 
-use super::evaluation::{evaluate_run, Drift, RunEvaluation};
+use super::evaluation::{evaluate_run, Drift, LinkTruth, RunEvaluation};
 use super::frame_loop::{RunEnd, UnreadableFrame};
 use super::source::Source;
 use spslam::camera::Sensor;
@@ -87,6 +87,10 @@ struct RunReport<'a> {
     /// Merges of the active map into an older map of the atlas: query and
     /// match input frames, the maps, inliers, the transform between them.
     merges: &'a [MergeRecord],
+    /// The accepted loops, then the merges, against the ground truth
+    /// (runs with ground truth): the true distance between the frames
+    /// joined, and whether they are the same place (within 10 m).
+    links_ground_truth: &'a [LinkTruth],
     /// The global bundle adjustments run after the corrections.
     global_ba: &'a [GlobalBaSummary],
     frames: &'a [FrameRecord],
@@ -345,6 +349,7 @@ impl RunOutputs<'_> {
             loops: slam.loops(),
             rejected_loops: slam.rejected_loops(),
             merges: slam.merges(),
+            links_ground_truth: &evaluated.links,
             global_ba: slam.global_ba_runs(),
             frames: records,
         };
