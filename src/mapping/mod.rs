@@ -101,6 +101,12 @@ pub struct LocalMapper {
     /// Check the map's invariants after each step and fail with
     /// [`SlamError::MapInvariant`] (on in debug builds; tests switch it on).
     pub check_invariants: bool,
+    /// A test hook that reproduces a slow or busy machine: on the mapping
+    /// thread, each keyframe waits (slowdown − 1) × the previous
+    /// keyframe's processing time before its own processing starts, so
+    /// local mapping keeps up `slowdown` times more slowly. 1 (the
+    /// default) is off; inline mapping ignores it.
+    pub slowdown: f64,
 }
 
 impl std::fmt::Debug for LocalMapper {
@@ -110,6 +116,7 @@ impl std::fmt::Debug for LocalMapper {
             .field("bundle_adjustment", &self.bundle_adjustment)
             .field("keyframe_culling", &self.keyframe_culling)
             .field("check_invariants", &self.check_invariants)
+            .field("slowdown", &self.slowdown)
             .finish_non_exhaustive()
     }
 }
@@ -142,6 +149,7 @@ impl LocalMapper {
             bundle_adjustment: true,
             keyframe_culling: true,
             check_invariants: cfg!(debug_assertions),
+            slowdown: 1.0,
         }
     }
 
@@ -155,6 +163,7 @@ impl LocalMapper {
             bundle_adjustment: self.bundle_adjustment,
             keyframe_culling: self.keyframe_culling,
             check_invariants: self.check_invariants,
+            slowdown: self.slowdown,
         }
     }
 

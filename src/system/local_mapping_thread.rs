@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::Arc;
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use crate::error::SlamError;
 use crate::map::{KeyFrameId, MapPointId, SharedMap};
@@ -49,8 +50,16 @@ fn run(
     // `pending` counts the job in progress: more than one means tracking
     // has queued another keyframe.
     let waiting = || pending.load(Ordering::Acquire) > 1;
+    let mut previous = Duration::ZERO;
     for job in jobs {
+        if mapper.slowdown > 1.0 && mapper.slowdown.is_finite() {
+            // The slow-machine hook: wait before the work, so that its
+            // results (new points, culled keyframes) come late.
+            std::thread::sleep(previous.mul_f64(mapper.slowdown - 1.0));
+        }
+        let started = Instant::now();
         let summary = mapper.process_keyframe(&map, job.keyframe, &job.created, &waiting);
+        previous = started.elapsed();
         let failed = summary.is_err();
         pending.fetch_sub(1, Ordering::AcqRel);
         let sent = results.send(MappingResult {

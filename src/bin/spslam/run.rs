@@ -107,8 +107,17 @@ pub struct RunArgs {
     device: Option<Device>,
     /// Run local mapping inline after each keyframe (deterministic, slower)
     /// instead of on its own thread.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "mapping_thread")]
     inline_mapping: bool,
+    /// Run local mapping on its own thread (the default; for case lists
+    /// that say so, see `spslam evaluate`).
+    #[arg(long)]
+    mapping_thread: bool,
+    /// Test hook for a slow or busy machine: the mapping thread works this
+    /// many times more slowly (it waits (F − 1) × the previous keyframe's
+    /// time before each keyframe). Needs the mapping thread.
+    #[arg(long, value_name = "F", conflicts_with = "inline_mapping")]
+    mapping_slowdown: Option<f64>,
     /// Do not close loops (loop closing is on by default with SuperPoint;
     /// ORB's binary descriptors have no VLAD codebook, so ORB runs never close loops).
     #[arg(long)]
@@ -245,6 +254,12 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     if let Some(mapper) = slam.mapper_mut() {
         mapper.bundle_adjustment = !args.no_local_ba;
         mapper.keyframe_culling = !args.no_keyframe_culling;
+        if let Some(factor) = args.mapping_slowdown {
+            if !(factor.is_finite() && factor >= 1.0) {
+                bail!("--mapping-slowdown {factor}: give a factor of at least 1");
+            }
+            mapper.slowdown = factor;
+        }
     }
     let model_fingerprint = match args.extractor {
         ExtractorChoice::Superpoint => {

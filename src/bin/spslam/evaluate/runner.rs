@@ -132,8 +132,11 @@ impl Runner<'_> {
             case.resolved_dataset(&self.substitutions),
             "--out".into(),
             self.layout.run(&case.name).to_string_lossy().into_owned(),
-            "--inline-mapping".into(),
         ];
+        // Inline mapping (deterministic) unless the case asks for the thread.
+        if !case.run_args.iter().any(|a| a == "--mapping-thread") {
+            args.push("--inline-mapping".into());
+        }
         args.extend(case.resolved_args(&self.substitutions));
         args
     }
