@@ -44,6 +44,17 @@ fn run(dataset: &str, out: &Path, extra: &[&str]) -> Output {
         .expect("run spslam run")
 }
 
+/// `spslam run` with ORB and local mapping on its thread.
+fn run_threaded(dataset: &str, out: &Path, extra: &[&str]) -> Output {
+    spslam()
+        .arg("run")
+        .args(["--dataset", dataset, "--extractor", "orb", "--out"])
+        .arg(out)
+        .args(extra)
+        .output()
+        .expect("run spslam run")
+}
+
 fn logs(output: &Output) -> String {
     format!(
         "stdout:\n{}\nstderr:\n{}",
@@ -126,6 +137,35 @@ fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
     assert_eq!(output.status.code(), Some(1), "{}", logs(&output));
     assert!(
         logs(&output).contains("needs right images"),
+        "{}",
+        logs(&output)
+    );
+
+    // The slow-machine hook: the threaded mapper 3x slower still tracks
+    // the first 20 frames (a straight street); bad factors are refused.
+    let out = data.path().join("out-slow");
+    let output = run_threaded(
+        &synth_dataset,
+        &out,
+        &["--frames", "20", "--mapping-slowdown", "3"],
+    );
+    assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
+    assert_eq!(tracked(&report(&out)), 20, "{}", logs(&output));
+    let output = run_threaded(
+        &synth_dataset,
+        &data.path().join("out-slow-bad"),
+        &["--mapping-slowdown", "0.5"],
+    );
+    assert_eq!(output.status.code(), Some(1), "{}", logs(&output));
+    assert!(logs(&output).contains("at least 1"), "{}", logs(&output));
+    let output = run(
+        &synth_dataset,
+        &data.path().join("out-slow-inline"),
+        &["--mapping-slowdown", "5"],
+    );
+    assert_eq!(output.status.code(), Some(1), "{}", logs(&output));
+    assert!(
+        logs(&output).contains("--inline-mapping"),
         "{}",
         logs(&output)
     );
