@@ -10,7 +10,7 @@ export SPSLAM_DATA
 PYTHON := .deps/venv/bin/python
 OUT ?= out
 
-.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python lint bench header clean-deps
+.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python lint bench header clean-deps evaluate
 
 all: build
 
@@ -52,6 +52,11 @@ demo: build
 	@echo "[demo] trajectory plot: $(OUT)/demo_run/trajectory.png (errors: $(OUT)/demo_run/trajectory_errors.png)"
 	@echo "[demo] report: $(OUT)/demo_run/report.txt; keypoints of frame 0: $(OUT)/demo_keypoints.png"
 	@echo "[demo] the same loop as RGB-D (TUM lists and depth maps): $(OUT)/demo_run_rgbd/report.txt; monocular: $(OUT)/demo_run_mono/report.txt"
+
+# The evaluation suite's standard set (suite/cases.txt), two runs at a
+# time; finished cases are skipped; regenerates EVALUATION.md's tables.
+evaluate: build
+	./target/release/spslam evaluate --jobs 2 --update-doc EVALUATION.md
 
 lint: setup
 	$(CARGO) fmt --check
