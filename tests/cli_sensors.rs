@@ -150,14 +150,20 @@ fn tum_folders_run_as_rgbd_and_stereo_sequences_run_as_mono() {
         &["--frames", "20", "--mapping-slowdown", "3"],
     );
     assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
-    assert_eq!(tracked(&report(&out)), 20, "{}", logs(&output));
+    let r = report(&out);
+    assert_eq!(r["mapping"], "thread, 3x slowed", "{}", logs(&output));
+    assert_eq!(tracked(&r), 20, "{}", logs(&output));
     let output = run_threaded(
         &synth_dataset,
         &data.path().join("out-slow-bad"),
         &["--mapping-slowdown", "0.5"],
     );
     assert_eq!(output.status.code(), Some(1), "{}", logs(&output));
-    assert!(logs(&output).contains("at least 1"), "{}", logs(&output));
+    assert!(
+        logs(&output).contains("at least 1 and at most 100"),
+        "{}",
+        logs(&output)
+    );
     let output = run(
         &synth_dataset,
         &data.path().join("out-slow-inline"),

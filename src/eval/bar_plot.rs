@@ -63,7 +63,7 @@ pub fn write_grouped_bar_plot(
     for (k, s) in series.iter().enumerate() {
         let colour = COLOURS[k % COLOURS.len()];
         let bars = s.values.iter().enumerate().filter_map(|(g, v)| {
-            let v = (*v)?;
+            let v = (*v).filter(|v| v.is_finite())?;
             let left = g as f64 + (k as f64 + 0.5) / slots;
             Some(Rectangle::new(
                 [(left, 0.0), (left + 1.0 / slots, v.min(top))],

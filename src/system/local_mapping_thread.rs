@@ -52,10 +52,12 @@ fn run(
     let waiting = || pending.load(Ordering::Acquire) > 1;
     let mut previous = Duration::ZERO;
     for job in jobs {
-        if mapper.slowdown > 1.0 && mapper.slowdown.is_finite() {
+        if mapper.slowdown > 1.0 {
             // The slow-machine hook: wait before the work, so that its
             // results (new points, culled keyframes) come late.
-            std::thread::sleep(previous.mul_f64(mapper.slowdown - 1.0));
+            let wait =
+                Duration::try_from_secs_f64(previous.as_secs_f64() * (mapper.slowdown - 1.0));
+            std::thread::sleep(wait.unwrap_or(Duration::from_secs(1)));
         }
         let started = Instant::now();
         let summary = mapper.process_keyframe(&map, job.keyframe, &job.created, &waiting);

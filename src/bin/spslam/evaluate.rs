@@ -48,8 +48,12 @@ pub struct EvaluateArgs {
     #[arg(long)]
     list: bool,
     /// Write the summary from the runs already in OUT; run nothing.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "no_summary")]
     summary_only: bool,
+    /// Run the cases and write no summary (the commands of --list use it,
+    /// so that jobs running at once never write the same files).
+    #[arg(long)]
+    no_summary: bool,
     /// Replace the block between `<!-- spslam evaluate: begin -->` and
     /// `<!-- spslam evaluate: end -->` in this markdown file with the summary.
     #[arg(long, value_name = "FILE")]
@@ -123,6 +127,7 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
                 out.to_string_lossy().into_owned(),
                 "--data".into(),
                 data.to_string_lossy().into_owned(),
+                "--no-summary".into(),
                 "--case".into(),
                 case.name.clone(),
             ];
@@ -180,7 +185,10 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
         }
     }
 
-    let (rows, missing) = summary::collect(&layout, &cases);
+    if args.no_summary {
+        return finish(&failures, cases.len(), &layout);
+    }
+    let (rows, missing) = summary::collect(&layout, &cases, |c| list.definition(c));
     let set_name = if args.only.is_empty() {
         args.set.clone()
     } else {
@@ -196,8 +204,11 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
     std::fs::write(&summary_json, serde_json::to_string_pretty(&json)? + "\n")
         .with_context(|| format!("writing {}", summary_json.display()))?;
     let plot = out.join("summary_ate.png");
+    let _ = std::fs::remove_file(&plot);
     if !rows.is_empty() {
-        summary::write_plot(&rows, &plot)?;
+        if let Err(e) = summary::write_plot(&rows, &plot) {
+            eprintln!("warning: the summary plot was not written: {e}");
+        }
     }
     println!("{markdown}");
     eprintln!(
@@ -222,14 +233,32 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
         eprintln!("updated the generated block of {}", doc.display());
     }
 
+    finish(&failures, cases.len(), &layout)
+}
+
+/// The command's end: an error naming the cases that did not complete.
+fn finish(failures: &[String], cases: usize, layout: &SuiteLayout) -> Result<()> {
     if !failures.is_empty() {
         bail!(
-            "{} of {} cases did not complete: {} (their logs are in {})",
+            "{} of {cases} cases did not complete: {} (their logs are in {})",
             failures.len(),
-            cases.len(),
             failures.join(", "),
             layout.runs().display()
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shell_word;
+
+    #[test]
+    fn shell_words_are_quoted_when_they_need_it() {
+        assert_eq!(shell_word("/a/b-c_d.e:f=g@h,i+j"), "/a/b-c_d.e:f=g@h,i+j");
+        assert_eq!(shell_word("a b"), "'a b'");
+        assert_eq!(shell_word("it's"), "'it'\\''s'");
+        assert_eq!(shell_word(""), "''");
+        assert_eq!(shell_word("$DATA"), "'$DATA'");
+    }
 }

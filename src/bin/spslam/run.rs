@@ -42,6 +42,16 @@ use pipeline::{with_extraction_stage, Reading};
 use signals::StopRequest;
 use source::{Source, DEFAULT_DEPTH_MAP_FACTOR};
 
+/// How local mapping ran, for the report: `inline`, `thread`, or
+/// `thread, 5x slowed` with `--mapping-slowdown`.
+fn mapping_mode(args: &RunArgs) -> String {
+    match (args.inline_mapping, args.mapping_slowdown) {
+        (true, _) => "inline".into(),
+        (false, Some(f)) if f > 1.0 => format!("thread, {f}x slowed"),
+        (false, _) => "thread".into(),
+    }
+}
+
 /// Exit code of an incomplete run whose outputs were written.
 const EXIT_INCOMPLETE: u8 = 2;
 
@@ -255,8 +265,8 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         mapper.bundle_adjustment = !args.no_local_ba;
         mapper.keyframe_culling = !args.no_keyframe_culling;
         if let Some(factor) = args.mapping_slowdown {
-            if !(factor.is_finite() && factor >= 1.0) {
-                bail!("--mapping-slowdown {factor}: give a factor of at least 1");
+            if !(1.0..=100.0).contains(&factor) {
+                bail!("--mapping-slowdown {factor}: give a factor of at least 1 and at most 100");
             }
             mapper.slowdown = factor;
         }
@@ -387,6 +397,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         sensor,
         frames_total: frames.len(),
         inference: &inference,
+        mapping: &mapping_mode(&args),
         wall_seconds: started.elapsed().as_secs_f64(),
         plot_plane: args.plot_plane,
     };

@@ -58,7 +58,8 @@ pub struct SynthArgs {
     /// flicker (a random gain in [0.6, 1.4] per frame), dusk (from the
     /// second lap on, or the middle frame: dark, with shot and read noise),
     /// low-light (dark and noisy throughout) or blackout (8 black frames
-    /// in the middle: a kidnap).
+    /// in the middle: a kidnap). A condition's own noise applies even with
+    /// --clean.
     #[arg(long, default_value = "normal")]
     condition: Condition,
     /// Render without noise, exposure change or blur.

@@ -169,7 +169,9 @@ impl Condition {
                 }
             }
             Condition::Dusk => {
-                let start = lap_frames.filter(|&l| l < frames).unwrap_or(middle);
+                let start = lap_frames
+                    .filter(|&l| l > 0 && l < frames)
+                    .unwrap_or(middle);
                 if index >= start {
                     dark(0.35, 1.3)
                 } else {

@@ -186,12 +186,27 @@ impl CaseList {
                             "`{name}` is not a valid case name (letters, digits, _ - .)"
                         )));
                     }
-                    if let Some(bad) = args
-                        .iter()
-                        .find(|a| matches!(a.as_str(), "--out" | "--dataset"))
+                    let has = |flag: &str| {
+                        args.iter()
+                            .any(|a| a == flag || a.starts_with(&format!("{flag}=")))
+                    };
+                    if let Some(bad) = ["--out", "--dataset", "--inline-mapping"]
+                        .into_iter()
+                        .find(|flag| has(flag))
                     {
                         return Err(syntax(format!(
-                            "a case's arguments must not set {bad}: the suite chooses it"
+                            "a case's arguments must not set {bad}: the suite chooses it \
+                             (mapping runs inline unless the case says --mapping-thread)"
+                        )));
+                    }
+                    if has("--mapping-slowdown") && !has("--mapping-thread") {
+                        return Err(syntax(
+                            "--mapping-slowdown needs --mapping-thread in the same case".into(),
+                        ));
+                    }
+                    if name.ends_with(".log") || name.ends_with(".case.json") {
+                        return Err(syntax(format!(
+                            "`{name}` ends like the suite's own files (.log, .case.json)"
                         )));
                     }
                     if list.cases.iter().any(|c| &c.name == name) {
@@ -231,8 +246,14 @@ impl CaseList {
     /// The cases of `set` (every case for `all`), or the named ones.
     pub fn select(&self, set: &str, names: &[String]) -> Result<Vec<&Case>, String> {
         if !names.is_empty() {
-            return names
-                .iter()
+            let mut unique: Vec<&String> = Vec::new();
+            for name in names {
+                if !unique.contains(&name) {
+                    unique.push(name);
+                }
+            }
+            return unique
+                .into_iter()
                 .map(|n| {
                     self.cases
                         .iter()
@@ -252,16 +273,12 @@ impl CaseList {
         Ok(chosen)
     }
 
-    /// What a run depends on, as text: its case line and its scene's line.
-    /// A finished run whose definition changed is run again.
+    /// What a run depends on, as text: its name, dataset and arguments,
+    /// and its scene's arguments (not its group or sets, which only place
+    /// it in the tables). A finished run whose definition changed is run
+    /// again.
     pub fn definition(&self, case: &Case) -> String {
-        let mut text = format!(
-            "case {} {} {} {}",
-            case.name,
-            case.group,
-            case.sets.join(","),
-            case.dataset
-        );
+        let mut text = format!("case {} {}", case.name, case.dataset);
         for arg in &case.run_args {
             text.push(' ');
             text.push_str(arg);
@@ -368,6 +385,14 @@ case loop_rgbd loop-rgbd standard tum:@loop/sequences/00
             ("case a g q d\ncase a g q d\n", 2, "defined twice"),
             ("run a\n", 1, "not `run`"),
             ("case a/b g q d\n", 1, "not a valid case name"),
+            ("case a g q d --out=x\n", 1, "must not set --out"),
+            ("case a g q d --inline-mapping\n", 1, "--mapping-thread"),
+            (
+                "case a g q d --mapping-slowdown 5\n",
+                1,
+                "needs --mapping-thread",
+            ),
+            ("case a.log g q d\n", 1, "the suite's own files"),
         ] {
             let err = parse(text).expect_err(text).to_string();
             assert!(err.starts_with(&format!("cases.txt:{line}:")), "{err}");

@@ -66,10 +66,15 @@ impl Runner<'_> {
             std::fs::remove_dir_all(&folder)
                 .with_context(|| format!("removing the stale scene {}", folder.display()))?;
         }
-        let staging = self
-            .layout
-            .scenes()
-            .join(format!(".{}.{}", scene.name, std::process::id()));
+        // Unique per process and moment: jobs on several cluster nodes may
+        // share the folder (and their process ids).
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos());
+        let staging =
+            self.layout
+                .scenes()
+                .join(format!(".{}.{}.{nanos}", scene.name, std::process::id()));
         let _ = std::fs::remove_dir_all(&staging);
         std::fs::create_dir_all(self.layout.scenes())
             .with_context(|| format!("creating {}", self.layout.scenes().display()))?;

@@ -68,11 +68,24 @@ pub struct MissingRun {
 }
 
 /// The rows of the runs that have a report, and the cases that have none.
-pub fn collect(layout: &SuiteLayout, cases: &[&Case]) -> (Vec<RunRow>, Vec<MissingRun>) {
+pub fn collect(
+    layout: &SuiteLayout,
+    cases: &[&Case],
+    definition: impl Fn(&Case) -> String,
+) -> (Vec<RunRow>, Vec<MissingRun>) {
     let mut rows = Vec::new();
     let mut missing = Vec::new();
     for case in cases {
         let record = CaseRecord::read(&layout.case_record(&case.name)).ok();
+        if let Some(r) = &record {
+            if r.definition != definition(case) {
+                missing.push(MissingRun {
+                    case: case.name.clone(),
+                    why: "its definition changed since it ran (run it again)".into(),
+                });
+                continue;
+            }
+        }
         let report = std::fs::read_to_string(layout.report(&case.name))
             .ok()
             .and_then(|t| serde_json::from_str::<Value>(&t).ok());
@@ -349,14 +362,23 @@ pub const BEGIN_MARKER: &str = "<!-- spslam evaluate: begin -->";
 /// See [`BEGIN_MARKER`].
 pub const END_MARKER: &str = "<!-- spslam evaluate: end -->";
 
-/// `document` with the text between the markers replaced by `block`, or
-/// None when the markers are missing or out of order.
+/// `document` with the lines between the marker lines replaced by
+/// `block`, or None when the markers are not on lines of their own, in
+/// order.
 pub fn replace_block(document: &str, block: &str) -> Option<String> {
-    let begin = document.find(BEGIN_MARKER)? + BEGIN_MARKER.len();
-    let end = begin + document[begin..].find(END_MARKER)?;
+    let line_at = |marker: &str, from: usize| {
+        let mut offset = from;
+        document[from..].split_inclusive('\n').find_map(|line| {
+            let start = offset;
+            offset += line.len();
+            (line.trim_end() == marker).then_some((start, offset))
+        })
+    };
+    let (_, after_begin) = line_at(BEGIN_MARKER, 0)?;
+    let (end, _) = line_at(END_MARKER, after_begin)?;
     Some(format!(
-        "{}\n{}{}",
-        &document[..begin],
+        "{}{}{}",
+        &document[..after_begin],
         block,
         &document[end..]
     ))
@@ -423,6 +445,7 @@ mod tests {
             format!("intro\n{BEGIN_MARKER}\nnew table\n{END_MARKER}\nafter\n")
         );
         assert!(replace_block("no markers", "x").is_none());
+        assert!(replace_block(&format!("see `{BEGIN_MARKER}` and `{END_MARKER}`"), "x").is_none());
         assert!(replace_block(&format!("{END_MARKER}{BEGIN_MARKER}"), "x").is_none());
     }
 }

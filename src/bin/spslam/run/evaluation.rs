@@ -27,8 +27,9 @@ pub struct RunEvaluation {
     pub drift: Option<Drift>,
     /// Scale drift (monocular).
     pub scale_drift: Option<ScaleDrift>,
-    /// The accepted loops and merges against the ground truth.
-    pub links: Vec<LinkTruth>,
+    /// The accepted loops and merges against the ground truth (None
+    /// without ground truth).
+    pub links: Option<Vec<LinkTruth>>,
 }
 
 /// Two frames joined by a loop or a merge are the same place when their
@@ -48,21 +49,35 @@ pub struct LinkTruth {
     pub same_place: bool,
 }
 
-/// The ground-truth pose nearest in time to `t`.
-fn nearest(gt: &Trajectory, t: f64) -> Option<usize> {
-    (0..gt.len()).min_by(|&a, &b| {
-        (gt.timestamps[a] - t)
+/// The index of the timestamp nearest to `t`.
+fn nearest(timestamps: &[f64], t: f64) -> Option<usize> {
+    (0..timestamps.len()).min_by(|&a, &b| {
+        (timestamps[a] - t)
             .abs()
-            .total_cmp(&(gt.timestamps[b] - t).abs())
+            .total_cmp(&(timestamps[b] - t).abs())
     })
 }
 
-/// Each link (query, match timestamps) against the ground truth.
-fn link_truth(gt: &Trajectory, links: &[(f64, f64)]) -> Vec<LinkTruth> {
+/// Each link (query, match timestamps of the estimate) against the ground
+/// truth. KITTI-layout ground truth is paired with the estimate by row
+/// (its "timestamps" are row numbers), other ground truth by time.
+fn link_truth(
+    gt: &Trajectory,
+    estimate: &Trajectory,
+    links: &[(f64, f64)],
+    by_index: bool,
+) -> Vec<LinkTruth> {
+    let gt_index = |t: f64| {
+        if by_index {
+            nearest(&estimate.timestamps, t).filter(|&i| i < gt.len())
+        } else {
+            nearest(&gt.timestamps, t)
+        }
+    };
     links
         .iter()
         .filter_map(|&(query_time, match_time)| {
-            let (q, m) = (nearest(gt, query_time)?, nearest(gt, match_time)?);
+            let (q, m) = (gt_index(query_time)?, gt_index(match_time)?);
             let distance_m =
                 (gt.poses[q].translation.vector - gt.poses[m].translation.vector).norm();
             Some(LinkTruth {
@@ -133,7 +148,7 @@ pub fn evaluate_run(
         }
     };
     let monocular = sensor == Sensor::Monocular;
-    let links_truth = link_truth(gt, links);
+    let links_truth = link_truth(gt, trajectory, links, source.is_kitti());
     if !links_truth.is_empty() {
         let false_links: Vec<String> = links_truth
             .iter()
@@ -189,7 +204,7 @@ pub fn evaluate_run(
                 report: None,
                 drift,
                 scale_drift,
-                links: links_truth,
+                links: Some(links_truth),
             });
         }
     };
@@ -219,6 +234,44 @@ pub fn evaluate_run(
         report: Some(report),
         drift,
         scale_drift,
-        links: links_truth,
+        links: Some(links_truth),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+    fn along_x(times: &[f64], step: f64) -> Trajectory {
+        Trajectory::new(
+            times.to_vec(),
+            (0..times.len())
+                .map(|i| {
+                    Isometry3::from_parts(
+                        Translation3::new(step * i as f64, 0.0, 0.0),
+                        UnitQuaternion::identity(),
+                    )
+                })
+                .collect(),
+        )
+    }
+
+    #[test]
+    fn kitti_links_pair_by_row_and_others_by_time() {
+        // KITTI layout: ground-truth "times" are row numbers, the
+        // estimate's are seconds (10 fps); frame 30 (3 s) and frame 0 are
+        // 30 m apart, not 3 m.
+        let times: Vec<f64> = (0..40).map(|i| i as f64 * 0.1).collect();
+        let rows: Vec<f64> = (0..40).map(|i| i as f64).collect();
+        let (gt, estimate) = (along_x(&rows, 1.0), along_x(&times, 1.0));
+        let links = [(3.0, 0.0), (0.5, 0.0)];
+        let truth = link_truth(&gt, &estimate, &links, true);
+        assert!((truth[0].distance_m - 30.0).abs() < 1e-9 && !truth[0].same_place);
+        assert!((truth[1].distance_m - 5.0).abs() < 1e-9 && truth[1].same_place);
+        // By time (TUM, EuRoC): the ground truth has real timestamps.
+        let gt_timed = along_x(&times, 1.0);
+        let truth = link_truth(&gt_timed, &estimate, &links, false);
+        assert!((truth[0].distance_m - 30.0).abs() < 1e-9);
+    }
 }

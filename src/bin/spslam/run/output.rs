@@ -37,6 +37,8 @@ pub struct RunOutputs<'a> {
     pub frames_total: usize,
     /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
     pub inference: &'a str,
+    /// How local mapping ran (`inline`, `thread`, `thread, 5x slowed`).
+    pub mapping: &'a str,
     /// Wall time of the frame loop (extraction pipelined with tracking)
     /// and of local mapping's last keyframes, s.
     pub wall_seconds: f64,
@@ -53,6 +55,9 @@ struct RunReport<'a> {
     extractor: &'a str,
     /// How the extractor ran, e.g. `int8 on cpu, 2 levels`.
     inference: &'a str,
+    /// How local mapping ran: `inline`, `thread` or `thread, Fx slowed`
+    /// (`--mapping-slowdown`).
+    mapping: &'a str,
     /// Wall time of the frame loop and local mapping's finish, s.
     wall_seconds: f64,
     /// Wall time per processed frame, ms (the figure to compare runs by).
@@ -90,7 +95,7 @@ struct RunReport<'a> {
     /// The accepted loops, then the merges, against the ground truth
     /// (runs with ground truth): the true distance between the frames
     /// joined, and whether they are the same place (within 10 m).
-    links_ground_truth: &'a [LinkTruth],
+    links_ground_truth: Option<&'a [LinkTruth]>,
     /// The global bundle adjustments run after the corrections.
     global_ba: &'a [GlobalBaSummary],
     frames: &'a [FrameRecord],
@@ -333,6 +338,7 @@ impl RunOutputs<'_> {
             sensor: self.sensor,
             extractor: &extractor,
             inference: self.inference,
+            mapping: self.mapping,
             wall_seconds: self.wall_seconds,
             wall_ms_per_frame,
             complete: end.is_complete(),
@@ -349,7 +355,7 @@ impl RunOutputs<'_> {
             loops: slam.loops(),
             rejected_loops: slam.rejected_loops(),
             merges: slam.merges(),
-            links_ground_truth: &evaluated.links,
+            links_ground_truth: evaluated.links.as_deref(),
             global_ba: slam.global_ba_runs(),
             frames: records,
         };
