@@ -19,8 +19,12 @@ setup:
 	@command -v $(CARGO) >/dev/null || { echo "error: cargo is not installed; install Rust (https://rustup.rs) first"; exit 1; }
 	@bash tools/setup.sh
 
+# `make test` builds the tests in the same cargo run as the library and the
+# binary (BUILD_TARGETS below): the dev-dependencies change the features of
+# shared crates (faer, gemm, regex), and one run builds them once, not twice.
+BUILD_TARGETS ?=
 build: setup
-	$(CARGO) build --release
+	$(CARGO) build --release $(BUILD_TARGETS)
 
 # ONNX Runtime's GPU build and its CUDA libraries (PyPI wheels) for
 # `--device cuda`; writes .deps/gpu.env. Needs an NVIDIA GPU and driver to be
@@ -74,7 +78,10 @@ include cpp_shim/orbslam3/orbslam3.mk
 # The whole suite: formatting and lints, Rust unit/property/integration tests,
 # the exporter's tests, the C++ shim's tests (with valgrind), and the real
 # ORB-SLAM3 v1.0 (PyPI wheel) on KITTI 06 with ORB, the float preload and
-# the binary preload, three runs each (about 6 minutes on 2 cores).
+# the binary preload, one run each here (about 4 minutes on 2 cores;
+# `make orbslam3-check` alone runs each three times).
+test: BUILD_TARGETS = --lib --bins --tests --examples
+test: ORBSLAM3_RUNS = 1
 test: lint test-rust test-python cpp-test orbslam3-check
 
 bench: build

@@ -33,11 +33,12 @@ fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
 }
 
-/// A SuperPoint system with loop closing, mapping inline.
+/// A SuperPoint system with loop closing, mapping inline; its extractors
+/// share the feature cache (the localisation runs see the same frames).
 fn system(sequence: &SyntheticSequence) -> SlamSystem {
     let rig = rig_of(sequence);
     let config = ExtractorSettings::default().superpoint_config(1, 1);
-    let sp = || Box::new(common::extractor(config.clone()));
+    let sp = || Box::new(common::cached_extractor(config.clone()));
     let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     let codebook = ok(Codebook::load_for(&default_codebook_for(&config), &config));
     ok(slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default()));

@@ -95,7 +95,8 @@ struct Run {
 fn run(sequence: &SyntheticSequence, loop_closing: bool) -> Run {
     let rig = rig_of(sequence);
     let config = ExtractorSettings::default().superpoint_config(1, 1);
-    let sp = || Box::new(common::extractor(config.clone()));
+    // Both runs show the same images: each is extracted once.
+    let sp = || Box::new(common::cached_extractor(config.clone()));
     let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     if loop_closing {
         common::enable_loop_closing(&mut slam, &config);

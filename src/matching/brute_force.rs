@@ -1,5 +1,6 @@
 //! All-pairs matching with Lowe's ratio test and a mutual (cross) check.
 
+use super::l2_rows::for_each_l2_row;
 use super::{check_kinds, BestTwo, MatchError};
 use crate::features::descriptor_set::DescriptorDistance;
 use crate::features::DescriptorSet;
@@ -69,38 +70,46 @@ pub fn match_brute_force(
             if *dim == 0 {
                 return Ok(Vec::new());
             }
-            let q: Vec<&[f32]> = q.chunks_exact(*dim).collect();
-            let t: Vec<&[f32]> = t.chunks_exact(*dim).collect();
-            match_rows(&q, &t, params)
+            let (n_query, n_train) = (q.len() / dim, t.len() / dim);
+            match_rows(n_query, n_train, params, |row| {
+                for_each_l2_row(q, t, *dim, row)
+            })
         }
         (DescriptorSet::Binary { data: q }, DescriptorSet::Binary { data: t }) => {
-            let q: Vec<&[u8; 32]> = q.iter().collect();
-            let t: Vec<&[u8; 32]> = t.iter().collect();
-            match_rows(&q, &t, params)
+            match_rows(q.len(), t.len(), params, |row| {
+                let mut distances = vec![0.0f32; t.len()];
+                for (i, a) in q.iter().enumerate() {
+                    for (d, b) in distances.iter_mut().zip(t) {
+                        *d = a.distance_to(b);
+                    }
+                    row(i, &distances);
+                }
+            })
         }
         _ => Vec::new(), // unreachable after check_kinds
     })
 }
 
-/// The one code path for both metrics.
-fn match_rows<R: DescriptorDistance + ?Sized>(
-    query: &[&R],
-    train: &[&R],
+/// The one decision for both metrics: `rows` hands over each query row's
+/// distances to every train row, in ascending query order.
+fn match_rows(
+    n_query: usize,
+    n_train: usize,
     params: MatchParams,
+    rows: impl FnOnce(&mut dyn FnMut(usize, &[f32])),
 ) -> Vec<Match> {
-    let mut column_best: Vec<Option<(usize, f32)>> = vec![None; train.len()];
-    let mut row_best = Vec::with_capacity(query.len());
-    for (i, q) in query.iter().enumerate() {
+    let mut column_best: Vec<Option<(usize, f32)>> = vec![None; n_train];
+    let mut row_best = Vec::with_capacity(n_query);
+    rows(&mut |i, distances| {
         let mut best = BestTwo::default();
-        for (j, t) in train.iter().enumerate() {
-            let d = q.distance_to(t);
+        for (j, &d) in distances.iter().enumerate() {
             best.offer(j, d);
             if params.mutual && column_best[j].is_none_or(|(_, cd)| d < cd) {
                 column_best[j] = Some((i, d));
             }
         }
         row_best.push(best);
-    }
+    });
     row_best
         .iter()
         .enumerate()

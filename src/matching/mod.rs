@@ -17,6 +17,7 @@ mod brute_force;
 pub mod dense;
 mod error;
 mod grid;
+mod l2_rows;
 mod projection;
 mod rotation;
 mod stereo;

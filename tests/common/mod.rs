@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+pub mod feature_cache;
 pub mod map_files;
 pub mod pose_graph_problems;
 pub mod rng;
@@ -92,6 +93,16 @@ pub fn setup(test: &str) -> Option<PathBuf> {
 /// An extractor with the given config, panicking with the error's text.
 pub fn extractor(config: ExtractorConfig) -> SuperPointExtractor {
     SuperPointExtractor::new(config).unwrap_or_else(|e| panic!("cannot create the extractor: {e}"))
+}
+
+/// [`extractor`] behind the process-wide feature cache
+/// ([`feature_cache::CachedExtractor`]): for runs with local mapping inline
+/// that see the same images again.
+pub fn cached_extractor(
+    config: ExtractorConfig,
+) -> feature_cache::CachedExtractor<SuperPointExtractor> {
+    let tag = format!("{config:?}");
+    feature_cache::CachedExtractor::new(extractor(config), tag)
 }
 
 /// Loads an image, panicking with the error's text.

@@ -1,0 +1,120 @@
+//! A process-wide cache of extracted features, for tests that run SLAM
+//! several times over the same images (with and without loop closing, a
+//! saved map localised again): each image goes through the network once
+//! per test binary, so the suite spends its time on what it tests.
+//!
+//! Extraction is deterministic on one machine (the same image and
+//! configuration give the same keypoints and descriptors), so a cached
+//! result is exactly what a second extraction would return. Keys are two
+//! independent 64-bit hashes of the configuration's tag and the pixels.
+//! Only for runs with local mapping inline: a cached frame costs no time,
+//! which would change how far a mapping thread falls behind.
+
+use std::collections::hash_map::DefaultHasher;
+use std::collections::HashMap;
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex, OnceLock};
+
+use spslam::features::pyramid::ScaleTables;
+use spslam::features::{
+    DescriptorKind, FeatureError, FeatureExtractor, FrameFeatures, GrayImageView,
+};
+
+type Key = (u64, u64);
+type Cache = Mutex<HashMap<Key, Arc<FrameFeatures>>>;
+
+fn cache() -> &'static Cache {
+    static CACHE: OnceLock<Cache> = OnceLock::new();
+    CACHE.get_or_init(Cache::default)
+}
+
+/// How many extractions the cache answered and how many ran, in this process.
+pub fn hits_and_misses() -> (usize, usize) {
+    let counts = counters().lock().map(|c| *c).unwrap_or((0, 0));
+    (counts.0, counts.1)
+}
+
+fn counters() -> &'static Mutex<(usize, usize)> {
+    static COUNTS: OnceLock<Mutex<(usize, usize)>> = OnceLock::new();
+    COUNTS.get_or_init(|| Mutex::new((0, 0)))
+}
+
+fn count(hit: bool) {
+    if let Ok(mut c) = counters().lock() {
+        if hit {
+            c.0 += 1;
+        } else {
+            c.1 += 1;
+        }
+    }
+}
+
+/// A [`FeatureExtractor`] that answers from the process-wide cache and
+/// extracts (and remembers) only images it has not seen with this tag.
+pub struct CachedExtractor<E> {
+    inner: E,
+    tag: String,
+}
+
+impl<E: FeatureExtractor> CachedExtractor<E> {
+    /// Wraps `inner`; `tag` must tell its configuration apart from every
+    /// other configuration cached in this process (e.g. `format!("{config:?}")`).
+    pub fn new(inner: E, tag: impl Into<String>) -> Self {
+        Self {
+            inner,
+            tag: tag.into(),
+        }
+    }
+
+    fn key(&self, image: &GrayImageView<'_>) -> Key {
+        let hash = |salt: u64| {
+            let mut h = DefaultHasher::new();
+            salt.hash(&mut h);
+            self.tag.hash(&mut h);
+            self.inner.name().hash(&mut h);
+            (image.width(), image.height()).hash(&mut h);
+            for y in 0..image.height() {
+                image.row(y).hash(&mut h);
+            }
+            h.finish()
+        };
+        (hash(0x5eed_0001), hash(0x5eed_0002))
+    }
+}
+
+impl<E: FeatureExtractor> FeatureExtractor for CachedExtractor<E> {
+    fn extract(&mut self, image: GrayImageView<'_>) -> Result<FrameFeatures, FeatureError> {
+        let key = self.key(&image);
+        let cached = cache().lock().ok().and_then(|c| c.get(&key).cloned());
+        if let Some(features) = cached {
+            count(true);
+            return Ok(features.as_ref().clone());
+        }
+        count(false);
+        let features = self.inner.extract(image)?;
+        if let Ok(mut c) = cache().lock() {
+            c.insert(key, Arc::new(features.clone()));
+        }
+        Ok(features)
+    }
+
+    fn scale_tables(&self) -> &ScaleTables {
+        self.inner.scale_tables()
+    }
+
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+
+    fn descriptor_kind(&self) -> DescriptorKind {
+        self.inner.descriptor_kind()
+    }
+
+    fn descriptor_cell(&self) -> Option<f32> {
+        self.inner.descriptor_cell()
+    }
+
+    fn inference_summary(&self) -> String {
+        self.inner.inference_summary()
+    }
+}
