@@ -71,9 +71,16 @@ pub fn match_brute_force(
                 return Ok(Vec::new());
             }
             let (n_query, n_train) = (q.len() / dim, t.len() / dim);
-            match_rows(n_query, n_train, params, |row| {
-                for_each_l2_row(q, t, *dim, row)
-            })
+            let mut matches = match_rows(n_query, n_train, params, |rows| {
+                for_each_l2_row(q, t, *dim, rows)
+            });
+            // The product's distances decide; the one reported is computed
+            // directly, the same number every other matcher reports.
+            for m in &mut matches {
+                let (a, b) = (m.query * dim, m.train * dim);
+                m.distance = q[a..a + dim].distance_to(&t[b..b + dim]);
+            }
+            matches
         }
         (DescriptorSet::Binary { data: q }, DescriptorSet::Binary { data: t }) => {
             match_rows(q.len(), t.len(), params, |row| {
