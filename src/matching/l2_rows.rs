@@ -3,7 +3,7 @@
 //! `|q - t|² = |q|² + |t|² - 2 q·t`. A query of 1000 SuperPoint rows against
 //! a loop candidate's 5000 map points is 1.3 G multiply-adds: faer's GEMM
 //! (run-time SIMD dispatch) does them several times faster than one
-//! distance at a time (`BENCHMARKS.md`, `brute_force`).
+//! distance at a time (`BENCHMARKS.md`, "Loop verification per candidate").
 //!
 //! The distances agree with [`DescriptorDistance::distance_to`] up to
 //! rounding (exactly for small exactly-representable values, which the

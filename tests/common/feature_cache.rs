@@ -21,32 +21,23 @@ use spslam::features::{
 };
 
 type Key = (u64, u64);
-type Cache = Mutex<HashMap<Key, Arc<FrameFeatures>>>;
 
-fn cache() -> &'static Cache {
-    static CACHE: OnceLock<Cache> = OnceLock::new();
-    CACHE.get_or_init(Cache::default)
+/// The cached features and how many extractions were answered and run.
+#[derive(Default)]
+struct Cache {
+    features: HashMap<Key, Arc<FrameFeatures>>,
+    hits: usize,
+    misses: usize,
+}
+
+fn cache() -> &'static Mutex<Cache> {
+    static CACHE: OnceLock<Mutex<Cache>> = OnceLock::new();
+    CACHE.get_or_init(Mutex::default)
 }
 
 /// How many extractions the cache answered and how many ran, in this process.
 pub fn hits_and_misses() -> (usize, usize) {
-    let counts = counters().lock().map(|c| *c).unwrap_or((0, 0));
-    (counts.0, counts.1)
-}
-
-fn counters() -> &'static Mutex<(usize, usize)> {
-    static COUNTS: OnceLock<Mutex<(usize, usize)>> = OnceLock::new();
-    COUNTS.get_or_init(|| Mutex::new((0, 0)))
-}
-
-fn count(hit: bool) {
-    if let Ok(mut c) = counters().lock() {
-        if hit {
-            c.0 += 1;
-        } else {
-            c.1 += 1;
-        }
-    }
+    cache().lock().map(|c| (c.hits, c.misses)).unwrap_or((0, 0))
 }
 
 /// A [`FeatureExtractor`] that answers from the process-wide cache and
@@ -85,15 +76,21 @@ impl<E: FeatureExtractor> CachedExtractor<E> {
 impl<E: FeatureExtractor> FeatureExtractor for CachedExtractor<E> {
     fn extract(&mut self, image: GrayImageView<'_>) -> Result<FrameFeatures, FeatureError> {
         let key = self.key(&image);
-        let cached = cache().lock().ok().and_then(|c| c.get(&key).cloned());
+        // The lock is held for the lookup and the insert, never across extraction.
+        let cached = cache().lock().ok().and_then(|mut c| {
+            let found = c.features.get(&key).cloned();
+            match found {
+                Some(_) => c.hits += 1,
+                None => c.misses += 1,
+            }
+            found
+        });
         if let Some(features) = cached {
-            count(true);
             return Ok(features.as_ref().clone());
         }
-        count(false);
         let features = self.inner.extract(image)?;
         if let Ok(mut c) = cache().lock() {
-            c.insert(key, Arc::new(features.clone()));
+            c.features.insert(key, Arc::new(features.clone()));
         }
         Ok(features)
     }
