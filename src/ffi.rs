@@ -455,6 +455,8 @@ unsafe fn config_from_c(c: &SpslamConfig) -> Result<ExtractorConfig, FfiError> {
             min_contrast: p.min_contrast,
             contrast_radius: p.contrast_radius as usize,
         },
+        // Not part of the C struct (its layout is the ABI): the default.
+        exposure: Default::default(),
         precision: precision_from_c(c.precision)?,
         device: device_from_c(c.device)?,
         model_path,

@@ -1,6 +1,6 @@
 use std::path::PathBuf;
 
-use super::{Device, FeatureError, Precision};
+use super::{Device, ExposureConfig, FeatureError, Precision};
 
 /// How keypoints are selected from the NMS candidates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -109,6 +109,9 @@ pub struct ExtractorConfig {
     pub anms: AnmsMethod,
     /// The periodic-artefact filter.
     pub periodic_filter: PeriodicFilterConfig,
+    /// Exposure normalisation of dim, low-contrast input (see
+    /// [`exposure`](super::exposure)).
+    pub exposure: ExposureConfig,
     /// The network's precision; it picks the default model file.
     pub precision: Precision,
     /// Where ONNX Runtime runs the network.
@@ -136,6 +139,7 @@ impl Default for ExtractorConfig {
             border: 8,
             anms: AnmsMethod::Kdtree,
             periodic_filter: PeriodicFilterConfig::default(),
+            exposure: ExposureConfig::default(),
             precision: Precision::default(),
             device: Device::default(),
             model_path: None,
@@ -237,6 +241,17 @@ impl ExtractorConfig {
                 p.contrast_radius,
                 "between 1 and 32 px",
             ));
+        }
+        let e = &self.exposure;
+        if !(e.target_range.is_finite() && (0.0..=255.0).contains(&e.target_range)) {
+            return Err(bad(
+                "exposure.target_range",
+                e.target_range,
+                "gray levels in [0, 255] (0 = off)",
+            ));
+        }
+        if !(e.max_gain.is_finite() && (1.0..=64.0).contains(&e.max_gain)) {
+            return Err(bad("exposure.max_gain", e.max_gain, "a gain in [1, 64]"));
         }
         if self.threads > 1024 {
             return Err(bad("threads", self.threads, "at most 1024 (0 = automatic)"));

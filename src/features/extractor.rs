@@ -6,8 +6,9 @@ use std::time::Instant;
 use ndarray::{ArrayView2, ArrayView4};
 
 use super::anms::{self, Candidate};
+use super::exposure::ExposureStretch;
 use super::image::MIN_IMAGE_SIDE;
-use super::model::{fill_padded_input, SuperPointModel};
+use super::model::{fill_padded_input_stretched, SuperPointModel};
 use super::nms::{nms_candidates, ValidRegion};
 use super::orientation::{CircularPatch, PATCH_SIZE};
 use super::periodic::{reject_low_contrast, LatticeMask};
@@ -24,6 +25,9 @@ pub struct PeriodicFilterReport {
     pub lattice_cells: usize,
     /// Candidates dropped for low contrast, over all levels.
     pub low_contrast_rejected: usize,
+    /// The exposure stretch's gain (1 = the image was used as it is; 0
+    /// before the first extraction).
+    pub exposure_gain: f32,
 }
 
 /// Reusable buffers, so repeated extractions do not allocate anew.
@@ -146,6 +150,10 @@ impl SuperPointExtractor {
             .descriptors
             .reserve(self.config.n_features * features.descriptor_len);
         self.last_report = PeriodicFilterReport::default();
+        let t = Instant::now();
+        let stretch = ExposureStretch::measure(image, &self.config.exposure);
+        self.last_report.exposure_gain = stretch.gain;
+        timings.preprocess_ms += ms(t);
         for level in 0..self.tables.n_levels() {
             let level_image = match level {
                 0 => image,
@@ -161,7 +169,12 @@ impl SuperPointExtractor {
             {
                 continue;
             }
-            self.extract_level(level, level_image, quota, &mut features, &mut timings)?;
+            let input = LevelInput {
+                level,
+                image: level_image,
+                stretch,
+            };
+            self.extract_level(input, quota, &mut features, &mut timings)?;
         }
         timings.total_ms = timings.preprocess_ms
             + timings.inference_ms
@@ -174,14 +187,18 @@ impl SuperPointExtractor {
 
     fn extract_level(
         &mut self,
-        level: usize,
-        image: GrayImageView<'_>,
+        input: LevelInput<'_>,
         quota: usize,
         features: &mut Features,
         timings: &mut StageTimings,
     ) -> Result<(), FeatureError> {
+        let LevelInput {
+            level,
+            image,
+            stretch,
+        } = input;
         let t = Instant::now();
-        let (pw, ph) = fill_padded_input(image, &mut self.input);
+        let (pw, ph) = fill_padded_input_stretched(image, stretch, &mut self.input);
         timings.preprocess_ms += ms(t);
 
         let t_inference = Instant::now();
@@ -209,6 +226,7 @@ impl SuperPointExtractor {
                     radius,
                     region,
                     filter: &config.periodic_filter,
+                    contrast_gain: stretch.gain,
                 };
                 pass.run(scores, image, cell_max)
             };
@@ -265,6 +283,13 @@ impl SuperPointExtractor {
     }
 }
 
+/// One pyramid level and the exposure stretch measured on level 0.
+struct LevelInput<'a> {
+    level: usize,
+    image: GrayImageView<'a>,
+    stretch: ExposureStretch,
+}
+
 /// One detection on a level's score map: lattice suppression, NMS, border
 /// removal and low-contrast rejection.
 struct DetectionPass<'a> {
@@ -272,6 +297,9 @@ struct DetectionPass<'a> {
     radius: usize,
     region: ValidRegion,
     filter: &'a PeriodicFilterConfig,
+    /// The exposure stretch's gain: the contrast threshold is in the
+    /// stretched image's gray levels.
+    contrast_gain: f32,
 }
 
 /// The candidates of one [`DetectionPass`] and what the filter removed.
@@ -306,7 +334,11 @@ impl DetectionPass<'_> {
         let mut candidates =
             nms_candidates(scores, adjust, self.threshold, self.radius, self.region);
         let before = candidates.len();
-        reject_low_contrast(&mut candidates, image, filter);
+        let contrast_filter = PeriodicFilterConfig {
+            min_contrast: filter.min_contrast / self.contrast_gain,
+            ..*filter
+        };
+        reject_low_contrast(&mut candidates, image, &contrast_filter);
         Detection {
             low_contrast_rejected: before - candidates.len(),
             lattice_cells: mask.suppressed_cells(),

@@ -1,5 +1,5 @@
 //! Feature extraction: SuperPoint via ONNX Runtime, NMS, the periodic-artefact
-//! filter, ANMS, descriptor sampling, the ORB-SLAM3 scale pyramid, and ORB.
+//! filter, exposure normalisation, ANMS, descriptor sampling, the ORB-SLAM3 scale pyramid, and ORB.
 
 pub mod anms;
 mod config;
@@ -7,6 +7,7 @@ pub mod descriptor_set;
 pub mod descriptors;
 pub mod draw;
 mod error;
+pub mod exposure;
 mod extractor;
 pub mod frontend;
 mod image;
@@ -24,6 +25,7 @@ pub mod sign_bits;
 pub use config::{default_model_path, AnmsMethod, ExtractorConfig, PeriodicFilterConfig};
 pub use descriptor_set::{DescriptorKind, DescriptorRef, DescriptorSet};
 pub use error::FeatureError;
+pub use exposure::ExposureConfig;
 pub use extractor::{PeriodicFilterReport, SuperPointExtractor};
 pub use frontend::{FeatureExtractor, FrameFeatures};
 pub use image::{GrayImage, GrayImageView, MAX_IMAGE_SIDE, MIN_IMAGE_SIDE};

@@ -9,6 +9,7 @@ use ort::value::TensorRef;
 
 use ort::ep::ExecutionProvider;
 
+use super::exposure::ExposureStretch;
 use super::{Device, FeatureError, GrayImageView};
 
 /// The name of the model's input.
@@ -255,16 +256,26 @@ fn open_session(
 /// Copies the image into `buffer` as floats in [0, 1], padded by edge
 /// replication up to a multiple of the cell size; returns the padded size.
 pub fn fill_padded_input(image: GrayImageView<'_>, buffer: &mut Vec<f32>) -> (usize, usize) {
+    fill_padded_input_stretched(image, ExposureStretch::IDENTITY, buffer)
+}
+
+/// [`fill_padded_input`] with the gray levels mapped through `stretch` first
+/// (see [`exposure`](super::exposure)).
+pub fn fill_padded_input_stretched(
+    image: GrayImageView<'_>,
+    stretch: ExposureStretch,
+    buffer: &mut Vec<f32>,
+) -> (usize, usize) {
     let (w, h) = (image.width(), image.height());
     let pw = w.div_ceil(CELL) * CELL;
     let ph = h.div_ceil(CELL) * CELL;
     buffer.clear();
     buffer.reserve(pw * ph);
-    const INV: f32 = 1.0 / 255.0;
+    let table = stretch.input_table();
     for y in 0..ph {
         let row = image.row(y.min(h - 1));
-        buffer.extend(row.iter().map(|&p| p as f32 * INV));
-        let last = row[w - 1] as f32 * INV;
+        buffer.extend(row.iter().map(|&p| table[p as usize]));
+        let last = table[row[w - 1] as usize];
         buffer.extend(std::iter::repeat_n(last, pw - w));
     }
     (pw, ph)

@@ -54,6 +54,9 @@ pub struct ExtractArgs {
     /// Write keypoints, descriptors and timings as JSON (with several images, `_<image stem>` is added to the name).
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Turn off the exposure stretch of dim, low-contrast images (on by default; see the README).
+    #[arg(long)]
+    no_exposure_stretch: bool,
     /// Write the image with the keypoints drawn (with several images, `_<image stem>` is added to the name).
     #[arg(long)]
     draw: Option<PathBuf>,
@@ -77,6 +80,9 @@ pub fn run_extract(args: ExtractArgs) -> Result<()> {
         ..defaults
     };
     config.periodic_filter.enabled = !args.no_periodic_filter;
+    if args.no_exposure_stretch {
+        config.exposure.target_range = 0.0;
+    }
     let mut extractor = SuperPointExtractor::new(config).context("cannot create the extractor")?;
     let several = args.images.len() > 1;
     for path in &args.images {
@@ -87,8 +93,8 @@ pub fn run_extract(args: ExtractArgs) -> Result<()> {
         print_summary(path, &image, &features);
         let filter = extractor.last_periodic_report();
         println!(
-            "  periodic filter: {} lattice cells cleared, {} low-contrast candidates rejected",
-            filter.lattice_cells, filter.low_contrast_rejected
+            "  periodic filter: {} lattice cells cleared, {} low-contrast candidates rejected; exposure gain {:.2}",
+            filter.lattice_cells, filter.low_contrast_rejected, filter.exposure_gain
         );
         if let Some(out) = &args.json {
             let out = output_path(out, path, several)?;

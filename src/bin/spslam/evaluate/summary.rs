@@ -47,8 +47,9 @@ pub struct RunRow {
     pub loops: u64,
     /// Maps merged.
     pub merges: u64,
-    /// Loops and merges that join different places (over 10 m apart in
-    /// the ground truth); None without ground truth.
+    /// Loops and merges that are wrong (over 10 m apart in the ground
+    /// truth and a final relative pose over 1 m from the truth's); None
+    /// without ground truth.
     pub false_links: Option<u64>,
     /// Whether every frame was processed.
     pub complete: bool,
@@ -160,7 +161,11 @@ fn row_of(case: &Case, report: &Value, record: &CaseRecord) -> Option<RunRow> {
         false_links: report["links_ground_truth"].as_array().map(|links| {
             links
                 .iter()
-                .filter(|l| l["same_place"].as_bool() == Some(false))
+                .filter(|l| {
+                    // Reports written before `correct` existed judged by distance.
+                    let correct = l["correct"].as_bool().or(l["same_place"].as_bool());
+                    correct == Some(false)
+                })
                 .count() as u64
         }),
         complete: report["complete"].as_bool().unwrap_or(false),
@@ -270,7 +275,7 @@ pub fn markdown(rows: &[RunRow], missing: &[MissingRun], set: &str) -> String {
         md,
         "Cells: ATE RMSE in m (SE3-aligned; Sim3 for monocular runs; the final-position drift where a straight path cannot be aligned) (tracked/frames, keyframes). \
          The winner makes no false loop or merge, then tracks the most frames, then has the lowest ATE; under 5 % apart is a tie. \
-         False links: loops and merges joining frames over 10 m apart in the ground truth.\n"
+         False links: loops and merges joining frames over 10 m apart in the ground truth whose final relative pose is over 1 m from the truth's.\n"
     );
     let _ = writeln!(
         md,
