@@ -13,8 +13,6 @@ mod common;
 
 use spslam::camera::CameraRig;
 use spslam::dataset::synthetic::{Condition, SceneName, SyntheticConfig, SyntheticSequence};
-use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
-use spslam::features::GrayImage;
 use spslam::settings::SlamSettings;
 use spslam::system::SlamSystem;
 use spslam::tracking::Frontend;
@@ -42,34 +40,8 @@ fn superpoint_tracks_the_low_light_lap_from_its_first_frame() {
     let sp_config = settings.extractor.superpoint_config(1, 1);
     let sp = || Box::new(common::extractor(sp_config.clone()));
     let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
-    let first = sequence.pose(0).inverse();
-    let mut truth = Vec::new();
-    for i in 0..sequence.len() {
-        let frame = sequence.render(i, false);
-        let image = |data: Vec<u8>| ok(GrayImage::from_vec(data, frame.width, frame.height));
-        let (l, r) = (image(frame.left.clone()), image(frame.right.clone()));
-        ok(slam.process(i, frame.timestamp, l.view(), r.view()));
-        truth.push((frame.timestamp, first * frame.pose));
-    }
-    ok(slam.finish());
+    let report = common::synthetic_slam::run_against_truth(&mut slam, &sequence);
     let summary = ok(slam.summary());
-    let poses = ok(slam.trajectory());
-    let estimate = Trajectory::new(
-        poses.iter().map(|(t, _)| *t).collect(),
-        poses.iter().map(|(_, p)| p.to_isometry()).collect(),
-    );
-    let reference = Trajectory::new(
-        truth.iter().map(|(t, _)| *t).collect(),
-        truth.iter().map(|(_, p)| *p).collect(),
-    );
-    let report = ok(evaluate(
-        &reference,
-        &estimate,
-        &EvalOptions {
-            pairing: Pairing::ByIndex,
-            ..EvalOptions::default()
-        },
-    ));
     let lost: Vec<usize> = common::untracked(slam.records());
     eprintln!(
         "low-light loop 480x360, SuperPoint + ANMS: {FRAMES} frames, {} maps, ATE se3 {:.3} m over {:.1} m, lost {lost:?}",

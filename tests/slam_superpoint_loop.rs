@@ -9,8 +9,6 @@ mod common;
 
 use spslam::camera::CameraRig;
 use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticSequence};
-use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
-use spslam::features::GrayImage;
 use spslam::settings::SlamSettings;
 use spslam::system::SlamSystem;
 use spslam::tracking::Frontend;
@@ -39,33 +37,7 @@ fn one_lap_at_480x360_with_superpoint_on_8_levels() {
     if let Some(mapper) = slam.mapper_mut() {
         mapper.check_invariants = true;
     }
-    let first = sequence.pose(0).inverse();
-    let mut truth = Vec::new();
-    for i in 0..sequence.len() {
-        let frame = sequence.render(i, false);
-        let image = |data: Vec<u8>| ok(GrayImage::from_vec(data, frame.width, frame.height));
-        let (l, r) = (image(frame.left.clone()), image(frame.right.clone()));
-        ok(slam.process(i, frame.timestamp, l.view(), r.view()));
-        truth.push((frame.timestamp, first * frame.pose));
-    }
-    ok(slam.finish());
-    let poses = ok(slam.trajectory());
-    let estimate = Trajectory::new(
-        poses.iter().map(|(t, _)| *t).collect(),
-        poses.iter().map(|(_, p)| p.to_isometry()).collect(),
-    );
-    let reference = Trajectory::new(
-        truth.iter().map(|(t, _)| *t).collect(),
-        truth.iter().map(|(_, p)| *p).collect(),
-    );
-    let report = ok(evaluate(
-        &reference,
-        &estimate,
-        &EvalOptions {
-            pairing: Pairing::ByIndex,
-            ..EvalOptions::default()
-        },
-    ));
+    let report = common::synthetic_slam::run_against_truth(&mut slam, &sequence);
     let lost: Vec<usize> = common::untracked(slam.records());
     eprintln!(
         "loop 480x360, SuperPoint + ANMS on 8 levels: {} frames, ATE se3 {:.3} m, lost {lost:?}",

@@ -76,3 +76,36 @@ pub fn cached_images(sequence: &SyntheticSequence, index: usize) -> (f64, GrayIm
     };
     frame.as_ref().clone()
 }
+
+/// Runs `slam` over every frame of the sequence (rendered, stereo), finishes
+/// it and evaluates its trajectory against the sequence's ground truth
+/// (paired by index, the first pose at the origin).
+pub fn run_against_truth(
+    slam: &mut SlamSystem,
+    sequence: &SyntheticSequence,
+) -> spslam::eval::EvalReport {
+    use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
+    let ok = |r: Result<(), spslam::error::SlamError>| r.unwrap_or_else(|e| panic!("{e}"));
+    let first = sequence.pose(0).inverse();
+    let mut truth = Vec::new();
+    for i in 0..sequence.len() {
+        let (t, left, right) = images(sequence, i);
+        ok(slam.process(i, t, left.view(), right.view()).map(|_| ()));
+        truth.push((t, first * sequence.pose(i)));
+    }
+    ok(slam.finish());
+    let poses = slam.trajectory().unwrap_or_else(|e| panic!("{e}"));
+    let estimate = Trajectory::new(
+        poses.iter().map(|(t, _)| *t).collect(),
+        poses.iter().map(|(_, p)| p.to_isometry()).collect(),
+    );
+    let reference = Trajectory::new(
+        truth.iter().map(|(t, _)| *t).collect(),
+        truth.iter().map(|(_, p)| *p).collect(),
+    );
+    let options = EvalOptions {
+        pairing: Pairing::ByIndex,
+        ..EvalOptions::default()
+    };
+    evaluate(&reference, &estimate, &options).unwrap_or_else(|e| panic!("{e}"))
+}
