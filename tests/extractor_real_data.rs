@@ -293,13 +293,13 @@ fn a_dim_frame_is_stretched_and_keeps_its_keypoints_and_descriptors() {
         let image = kitti_frame(&data, 0, frame);
         let reference = stretched.extract(image.view()).unwrap();
         // A normal frame is used as it is: the same keypoints either way.
-        assert_eq!(stretched.last_periodic_report().exposure_gain, 1.0);
+        assert_eq!(stretched.last_exposure().gain, 1.0);
         let plain = unstretched.extract(image.view()).unwrap();
         assert_eq!(plain.keypoints, reference.keypoints, "frame {frame}");
 
         let dim = dimmed(&image, frame as u64);
         let with = stretched.extract(dim.view()).unwrap();
-        let gain = stretched.last_periodic_report().exposure_gain;
+        let gain = stretched.last_exposure().gain;
         let without = unstretched.extract(dim.view()).unwrap();
         let (m_with, m_without) = (
             same_place_matches(&reference, &with),

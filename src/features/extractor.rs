@@ -25,9 +25,6 @@ pub struct PeriodicFilterReport {
     pub lattice_cells: usize,
     /// Candidates dropped for low contrast, over all levels.
     pub low_contrast_rejected: usize,
-    /// The exposure stretch's gain (1 = the image was used as it is; 0
-    /// before the first extraction).
-    pub exposure_gain: f32,
 }
 
 /// Reusable buffers, so repeated extractions do not allocate anew.
@@ -49,6 +46,7 @@ pub struct SuperPointExtractor {
     input: Vec<f32>,
     scratch: Scratch,
     last_report: PeriodicFilterReport,
+    last_exposure: ExposureStretch,
 }
 
 impl std::fmt::Debug for SuperPointExtractor {
@@ -89,6 +87,7 @@ impl SuperPointExtractor {
             input: Vec::new(),
             scratch: Scratch::default(),
             last_report: PeriodicFilterReport::default(),
+            last_exposure: ExposureStretch::IDENTITY,
         })
     }
 
@@ -115,6 +114,12 @@ impl SuperPointExtractor {
     /// What the periodic-artefact filter did on the last extraction.
     pub fn last_periodic_report(&self) -> PeriodicFilterReport {
         self.last_report
+    }
+
+    /// The exposure stretch applied on the last extraction (the identity
+    /// before the first; see [`exposure`](super::exposure)).
+    pub fn last_exposure(&self) -> ExposureStretch {
+        self.last_exposure
     }
 
     /// Direct access to the network, e.g. to time a bare inference.
@@ -152,7 +157,7 @@ impl SuperPointExtractor {
         self.last_report = PeriodicFilterReport::default();
         let t = Instant::now();
         let stretch = ExposureStretch::measure(image, &self.config.exposure);
-        self.last_report.exposure_gain = stretch.gain;
+        self.last_exposure = stretch;
         timings.preprocess_ms += ms(t);
         for level in 0..self.tables.n_levels() {
             let level_image = match level {

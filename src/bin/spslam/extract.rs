@@ -94,7 +94,7 @@ pub fn run_extract(args: ExtractArgs) -> Result<()> {
         let filter = extractor.last_periodic_report();
         println!(
             "  periodic filter: {} lattice cells cleared, {} low-contrast candidates rejected; exposure gain {:.2}",
-            filter.lattice_cells, filter.low_contrast_rejected, filter.exposure_gain
+            filter.lattice_cells, filter.low_contrast_rejected, extractor.last_exposure().gain
         );
         if let Some(out) = &args.json {
             let out = output_path(out, path, several)?;
