@@ -14,6 +14,7 @@
 
 mod atlas;
 mod global_ba_thread;
+mod lagged_mapping;
 mod local_mapping_thread;
 mod loop_closing_stage;
 mod loop_closing_thread;

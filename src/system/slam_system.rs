@@ -22,6 +22,7 @@ use crate::tracking::{
 
 use super::atlas::{Atlas, MapIndex};
 use super::global_ba_thread::{run_global_ba, GlobalBaThread};
+use super::lagged_mapping::{LaggedJob, LaggedMapping};
 use super::local_mapping_thread::{MappingResult, MappingThread};
 use super::loop_closing_stage::{LoopClosingStage, LoopLog};
 use super::loop_closing_thread::LoopClosingThread;
@@ -67,6 +68,8 @@ pub struct SlamSystem {
     builder: FrameBuilder,
     pub(super) tracker: Tracker,
     pub(super) mapping: Mapping,
+    /// Inline mapping that lags a fixed number of frames per keyframe.
+    mapping_lag: Option<LaggedMapping>,
     pub(super) atlas: Atlas,
     pub(super) records: Vec<FrameRecord>,
     pub(super) loop_closing: Option<LoopClosing>,
@@ -87,6 +90,7 @@ impl SlamSystem {
             builder,
             tracker: Tracker::new(rig),
             mapping: Mapping::Inline(LocalMapper::new(rig)),
+            mapping_lag: None,
             atlas: Atlas::new(),
             records: Vec::new(),
             loop_closing: None,
@@ -184,6 +188,7 @@ impl SlamSystem {
     /// filed) and returns its mapper; `None` when mapping runs inline.
     pub(super) fn pause_mapping(&mut self) -> Result<Option<LocalMapper>, SlamError> {
         let Mapping::Thread { .. } = self.mapping else {
+            self.drain_lagged_mapping()?;
             return Ok(None);
         };
         let placeholder = Mapping::Inline(LocalMapper::new(self.rig));
@@ -222,6 +227,8 @@ impl SlamSystem {
     /// Moves local mapping to its own thread (no-op when it already is).
     /// A failed spawn is an error, and mapping stays inline.
     pub fn spawn_mapping_thread(&mut self) -> Result<(), SlamError> {
+        self.drain_lagged_mapping()?;
+        self.mapping_lag = None;
         let Mapping::Inline(mapper) = &mut self.mapping else {
             return Ok(());
         };
@@ -233,6 +240,55 @@ impl SlamSystem {
             waiting: BTreeMap::new(),
         };
         self.spawn_loop_closing_thread()
+    }
+
+    /// A deterministic slow machine for tests and the suite: inline local
+    /// mapping finishes each keyframe `frames_per_keyframe` frames after
+    /// its work began, keyframes queue meanwhile, and tracking sees the
+    /// queue as it sees the mapping thread's backlog (see
+    /// [`super::lagged_mapping`]). `None` maps each keyframe at once. A
+    /// later [`Self::spawn_mapping_thread`] ends the lag.
+    pub fn set_mapping_lag(&mut self, frames_per_keyframe: Option<usize>) -> Result<(), SlamError> {
+        self.drain_lagged_mapping()?;
+        self.mapping_lag = frames_per_keyframe.map(LaggedMapping::new);
+        Ok(())
+    }
+
+    /// Maps the lagged keyframes due by frame `index`.
+    fn map_due_keyframes(&mut self, index: usize) -> Result<(), SlamError> {
+        let Some(lag) = self.mapping_lag.as_mut() else {
+            return Ok(());
+        };
+        let due = lag.due(index);
+        self.map_lagged(due)
+    }
+
+    /// Maps every lagged keyframe still queued.
+    fn drain_lagged_mapping(&mut self) -> Result<(), SlamError> {
+        let Some(lag) = self.mapping_lag.as_mut() else {
+            return Ok(());
+        };
+        let queued = lag.drain();
+        self.map_lagged(queued)
+    }
+
+    /// Runs inline local mapping on lagged keyframes and files each
+    /// summary under the frame that made the keyframe.
+    fn map_lagged(&mut self, jobs: Vec<(LaggedJob, bool)>) -> Result<(), SlamError> {
+        let Mapping::Inline(mapper) = &mut self.mapping else {
+            return Ok(());
+        };
+        let map = self.atlas.active().map.clone();
+        for (job, more_waiting) in jobs {
+            let summary =
+                mapper.process_keyframe(&map, job.keyframe, &job.created, &|| more_waiting)?;
+            self.loop_inbox.push(job.keyframe);
+            if let Some(record) = self.records.get_mut(job.record) {
+                record.timings.mapping_ms = summary.elapsed_ms;
+                record.mapping = Some(summary);
+            }
+        }
+        Ok(())
     }
 
     /// Extracts a frame's features (a stereo pair's in parallel) without
@@ -283,6 +339,7 @@ impl SlamSystem {
     /// the last global BA. Call before reading the final trajectory.
     pub fn finish(&mut self) -> Result<(), SlamError> {
         let Mapping::Thread { .. } = self.mapping else {
+            self.drain_lagged_mapping()?;
             self.stop_loop_closing_thread()?;
             self.close_loops()?;
             return self.poll_global_ba(true);
@@ -441,6 +498,7 @@ impl SlamSystem {
         extraction_ms: f64,
     ) -> Result<&FrameRecord, SlamError> {
         self.poll_mapping()?;
+        self.map_due_keyframes(index)?;
         if self.tracker.should_start_new_map(index) {
             self.start_new_map(index)?;
         }
@@ -450,7 +508,7 @@ impl SlamSystem {
         let stereo_points = frame.stereo_count();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),
-            Mapping::Inline(_) => 0,
+            Mapping::Inline(_) => self.mapping_lag.as_ref().map_or(0, LaggedMapping::pending),
         };
         if queue > 0 {
             tracing::debug!(frame = index, queue, "local mapping busy");
@@ -463,6 +521,16 @@ impl SlamSystem {
         let mut mapping: Option<MappingSummary> = None;
         if let Some((kf, created)) = &outcome.new_keyframe {
             match &mut self.mapping {
+                Mapping::Inline(_) if self.mapping_lag.is_some() => {
+                    if let Some(lag) = self.mapping_lag.as_mut() {
+                        let job = LaggedJob {
+                            keyframe: *kf,
+                            created: created.clone(),
+                            record: self.records.len(),
+                        };
+                        lag.submit(index, job);
+                    }
+                }
                 Mapping::Inline(mapper) => {
                     mapping = Some(mapper.process_keyframe(&map, *kf, created, &|| false)?);
                     self.loop_inbox.push(*kf);

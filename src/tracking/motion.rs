@@ -126,7 +126,40 @@ pub(crate) fn track_reference_keyframe(
         return Ok(false);
     };
     let points: Vec<MapPointId> = kf.observed_points().map(|(_, p)| p).collect();
-    let matches = match_descriptors(frame, map, &points, 0.7)?;
+    track_by_descriptors(frame, last_pose, &points, map, rig, "reference keyframe")
+}
+
+/// The same descriptor matching against the last frame's tracked points
+/// (spslam's addition, not in ORB-SLAM3). Where the motion model's
+/// prediction fails (a turn starts or ends) and the reference keyframe
+/// is several frames behind (local mapping lags, so keyframes were
+/// refused), the last frame is the view closest to the current one.
+pub(crate) fn track_last_frame(
+    frame: &mut Frame,
+    last: &Frame,
+    map: &Map,
+    rig: &CameraRig,
+) -> Result<bool, SlamError> {
+    let points: Vec<MapPointId> = last
+        .map_points
+        .iter()
+        .flatten()
+        .filter_map(|p| map.resolve_point(*p))
+        .collect();
+    track_by_descriptors(frame, &last.pose_cw, &points, map, rig, "last frame")
+}
+
+/// Matches `points` to the frame by descriptor and refines the pose from
+/// `last_pose` (or a PnP RANSAC pose); see [`track_reference_keyframe`].
+fn track_by_descriptors(
+    frame: &mut Frame,
+    last_pose: &Se3,
+    points: &[MapPointId],
+    map: &Map,
+    rig: &CameraRig,
+    against: &'static str,
+) -> Result<bool, SlamError> {
+    let matches = match_descriptors(frame, map, points, 0.7)?;
     if matches.len() < 15 {
         return Ok(false);
     }
@@ -141,9 +174,10 @@ pub(crate) fn track_reference_keyframe(
     let from_last = refine_pose(frame, map, rig)?;
     tracing::debug!(
         frame = frame.index,
+        against,
         matches = matches.len(),
         from_last,
-        "reference keyframe"
+        "descriptor tracking"
     );
     if 2 * from_last < matches.len() {
         if let Some(pose) = pnp_ransac(frame, map, &matches, rig)? {
@@ -153,9 +187,10 @@ pub(crate) fn track_reference_keyframe(
             let from_pnp = refine_pose(frame, map, rig)?;
             tracing::debug!(
                 frame = frame.index,
+                against,
                 from_last,
                 from_pnp,
-                "reference keyframe: PnP RANSAC start"
+                "descriptor tracking: PnP RANSAC start"
             );
             if from_pnp <= from_last {
                 frame.pose_cw = kept_pose;

@@ -88,12 +88,22 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
             frames_since_keyframe: 1,
             expected: true,
         },
+        // spslam's departure: weak tracking (condition 1c) is never
+        // refused for the queue; ORB-SLAM3 refuses it at 3.
         Row {
-            name: "fewer than 25 % inliers, queue full (3)",
+            name: "fewer than 25 % inliers, queue beyond full (5)",
             inliers: 0.2,
             need_close: false,
-            queue: 3,
+            queue: 5,
             frames_since_keyframe: 1,
+            expected: true,
+        },
+        Row {
+            name: "fewer than 75 % inliers (not weak), queue full (3), a second since the last keyframe",
+            inliers: 0.6,
+            need_close: false,
+            queue: 3,
+            frames_since_keyframe: 10,
             expected: false,
         },
         Row {

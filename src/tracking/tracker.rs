@@ -10,7 +10,7 @@ use super::frame::Frame;
 use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext};
 use super::local_map::track_local_map;
 use super::mono_init::MonoInitialiser;
-use super::motion::{track_reference_keyframe, track_with_motion_model};
+use super::motion::{track_last_frame, track_reference_keyframe, track_with_motion_model};
 use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
 use crate::camera::{CameraRig, Sensor};
 use crate::error::{MapContext, SlamError};
@@ -35,6 +35,9 @@ pub enum TrackingMethod {
     MotionModel,
     /// Descriptor matching against the reference keyframe.
     ReferenceKeyFrame,
+    /// Descriptor matching against the last frame (where the motion model
+    /// and the reference keyframe left too few local-map inliers).
+    LastFrame,
     /// Relocalisation against the keyframes.
     Relocalisation,
     /// No pose.
@@ -258,27 +261,27 @@ impl Tracker {
                 // astray, or kept fewer than half its matches (a turn
                 // starting or ending): try the reference keyframe too and
                 // keep the pose with more local-map inliers.
-                let kept = (
-                    frame.pose_cw,
-                    frame.map_points.clone(),
-                    frame.reference_keyframe,
-                );
-                let alternative = if self.track_reference(&mut frame, map)? {
-                    self.track_local_map_logged(&mut frame, map, recently_relocalised)?
-                } else {
-                    0
-                };
-                tracing::debug!(
-                    frame = frame.index,
-                    motion_model = inliers,
-                    reference_keyframe = alternative,
-                    "doubtful motion model: reference keyframe tried"
-                );
-                if alternative > inliers {
-                    method = TrackingMethod::ReferenceKeyFrame;
-                    inliers = alternative;
-                } else {
-                    (frame.pose_cw, frame.map_points, frame.reference_keyframe) = kept;
+                let alternative = TrackingMethod::ReferenceKeyFrame;
+                if let Some(better) =
+                    self.try_instead(&mut frame, map, alternative, inliers, recently_relocalised)?
+                {
+                    (method, inliers) = (alternative, better);
+                }
+            }
+            if inliers < needed && method != TrackingMethod::Relocalisation {
+                // Tracking would be lost: try the last frame's points, the
+                // view closest to this one, before giving up.
+                let alternative = TrackingMethod::LastFrame;
+                if method != alternative {
+                    if let Some(better) = self.try_instead(
+                        &mut frame,
+                        map,
+                        alternative,
+                        inliers,
+                        recently_relocalised,
+                    )? {
+                        (method, inliers) = (alternative, better);
+                    }
                 }
             }
             if inliers < needed {
@@ -421,8 +424,57 @@ impl Tracker {
         track_reference_keyframe(frame, &last.pose_cw, reference, map, &self.rig)
     }
 
+    /// Tracks `frame` again by `alternative` (the reference keyframe or
+    /// the last frame) and its local map; keeps that pose and its
+    /// matches, returning their local-map inliers, when they are more
+    /// than `inliers`, else restores the frame as it was.
+    fn try_instead(
+        &self,
+        frame: &mut Frame,
+        map: &Map,
+        alternative: TrackingMethod,
+        inliers: usize,
+        recently_relocalised: bool,
+    ) -> Result<Option<usize>, SlamError> {
+        let kept = (
+            frame.pose_cw,
+            frame.map_points.clone(),
+            frame.reference_keyframe,
+        );
+        let tracked = match alternative {
+            TrackingMethod::ReferenceKeyFrame => self.track_reference(frame, map)?,
+            TrackingMethod::LastFrame => self.track_last(frame, map)?,
+            _ => false,
+        };
+        let found = if tracked {
+            self.track_local_map_logged(frame, map, recently_relocalised)?
+        } else {
+            0
+        };
+        tracing::debug!(
+            frame = frame.index,
+            inliers,
+            ?alternative,
+            alternative_inliers = found,
+            "too few or doubtful local-map inliers: another start tried"
+        );
+        if found > inliers {
+            return Ok(Some(found));
+        }
+        (frame.pose_cw, frame.map_points, frame.reference_keyframe) = kept;
+        Ok(None)
+    }
+
+    /// Tracks the last frame's points by descriptor, from its pose.
+    fn track_last(&self, frame: &mut Frame, map: &Map) -> Result<bool, SlamError> {
+        let Some(last) = self.last_frame.as_ref() else {
+            return Ok(false);
+        };
+        track_last_frame(frame, last, map, &self.rig)
+    }
+
     /// Motion model when there is a velocity, else (or when it fails) the
-    /// reference keyframe.
+    /// reference keyframe, else the last frame.
     fn track_frame_to_frame(
         &mut self,
         frame: &mut Frame,
@@ -438,6 +490,9 @@ impl Tracker {
         }
         if self.track_reference(frame, map)? {
             return Ok((TrackingMethod::ReferenceKeyFrame, false));
+        }
+        if self.track_last(frame, map)? {
+            return Ok((TrackingMethod::LastFrame, false));
         }
         Ok((TrackingMethod::None, false))
     }

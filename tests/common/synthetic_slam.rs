@@ -14,8 +14,17 @@ use spslam::tracking::Frontend;
 
 /// `frames` frames of `scene` at the tests' 480×360 size.
 pub fn small_sequence(scene: SceneName, frames: usize) -> SyntheticSequence {
+    small_sequence_of(scene, Some(frames))
+}
+
+/// The scene's own frame count (one lap of the loop) at the tests' size.
+pub fn small_lap(scene: SceneName) -> SyntheticSequence {
+    small_sequence_of(scene, None)
+}
+
+fn small_sequence_of(scene: SceneName, frames: Option<usize>) -> SyntheticSequence {
     let mut config = SyntheticConfig::for_scene(scene);
-    config.frames = Some(frames);
+    config.frames = frames;
     config.width = 480;
     config.height = 360;
     config.focal_length *= 0.75;

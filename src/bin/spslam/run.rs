@@ -43,10 +43,14 @@ use signals::StopRequest;
 use source::{Source, DEFAULT_DEPTH_MAP_FACTOR};
 
 /// How local mapping ran, for the report: `inline`, `thread`, or
-/// `thread, 5x slowed` with `--mapping-slowdown`.
+/// `thread, 5x slowed` with `--mapping-slowdown`, `inline, 5 frames per
+/// keyframe` with `--mapping-lag`.
 fn mapping_mode(args: &RunArgs) -> String {
     match (args.inline_mapping, args.mapping_slowdown) {
-        (true, _) => "inline".into(),
+        (true, _) => match args.mapping_lag {
+            Some(n) => format!("inline, {n} frames per keyframe"),
+            None => "inline".into(),
+        },
         (false, Some(f)) if f > 1.0 => format!("thread, {f}x slowed"),
         (false, _) => "thread".into(),
     }
@@ -128,6 +132,12 @@ pub struct RunArgs {
     /// time before each keyframe). Needs the mapping thread.
     #[arg(long, value_name = "F", conflicts_with = "inline_mapping")]
     mapping_slowdown: Option<f64>,
+    /// A deterministic slow machine: inline local mapping finishes each
+    /// keyframe N frames after its work began (keyframes queue meanwhile,
+    /// and tracking sees the queue as it sees the thread's backlog).
+    /// Every run gives the same result. Needs --inline-mapping.
+    #[arg(long, value_name = "N", requires = "inline_mapping")]
+    mapping_lag: Option<usize>,
     /// Do not close loops (loop closing is on by default with SuperPoint;
     /// ORB's binary descriptors have no VLAD codebook, so ORB runs never close loops).
     #[arg(long)]
@@ -294,6 +304,12 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         })?;
         slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default())?;
         codebook_fingerprint = file_fingerprint(&path);
+    }
+    if let Some(frames) = args.mapping_lag {
+        if !(1..=100).contains(&frames) {
+            bail!("--mapping-lag {frames}: give at least 1 and at most 100 frames per keyframe");
+        }
+        slam.set_mapping_lag(Some(frames))?;
     }
     if !args.inline_mapping {
         slam.spawn_mapping_thread()?;
