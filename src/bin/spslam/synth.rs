@@ -57,8 +57,10 @@ pub struct SynthArgs {
     /// normal, light-ramp (gain 1 -> 0.4, gamma 1 -> 1.5 over the sequence),
     /// flicker (a random gain in [0.6, 1.4] per frame), dusk (from the
     /// second lap on, or the middle frame: dark, with shot and read noise),
-    /// low-light (dark and noisy throughout) or blackout (8 black frames
-    /// in the middle: a kidnap). A condition's own noise applies even with
+    /// low-light (dark and noisy throughout), blackout (8 black frames
+    /// in the middle: a kidnap), low-texture (façades of mostly bare
+    /// plaster) or repeated-texture (every façade the same grid of
+    /// identical windows). A condition's own noise applies even with
     /// --clean.
     #[arg(long, default_value = "normal")]
     condition: Condition,

@@ -1,7 +1,8 @@
 //! Hard imaging conditions for a synthetic sequence: light that changes
 //! (a ramp, flicker, a second lap at dusk), low light with shot and read
-//! noise, and a kidnap (black frames). They change only the images: the
-//! poses and depth maps, and so the ground truth, stay exact.
+//! noise, a kidnap (black frames), and façades with low or repeated
+//! texture. They change only the images: the poses and depth maps, and so
+//! the ground truth, stay exact.
 
 use std::fmt;
 use std::str::FromStr;
@@ -9,6 +10,7 @@ use std::str::FromStr;
 use serde::{Deserialize, Serialize};
 
 use super::rng::{mix64, unit_from_bits};
+use super::styles::Facades;
 
 /// A hard condition applied to every image of a sequence.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -34,17 +36,25 @@ pub enum Condition {
     /// A kidnap: eight black frames in the middle of the sequence while the
     /// camera goes on moving; tracking must be lost and found again.
     Blackout,
+    /// Low texture: the façades are mostly bare plaster (three quarters of
+    /// 5-m zones without detail, sparse windows and panels).
+    LowTexture,
+    /// Repeated texture: every façade shows the same periodic grid of
+    /// identical windows and panels.
+    RepeatedTexture,
 }
 
 impl Condition {
     /// All conditions, in the order they are documented.
-    pub const ALL: [Condition; 6] = [
+    pub const ALL: [Condition; 8] = [
         Condition::Normal,
         Condition::LightRamp,
         Condition::Flicker,
         Condition::Dusk,
         Condition::LowLight,
         Condition::Blackout,
+        Condition::LowTexture,
+        Condition::RepeatedTexture,
     ];
 
     /// The name used on the command line.
@@ -56,6 +66,17 @@ impl Condition {
             Condition::Dusk => "dusk",
             Condition::LowLight => "low-light",
             Condition::Blackout => "blackout",
+            Condition::LowTexture => "low-texture",
+            Condition::RepeatedTexture => "repeated-texture",
+        }
+    }
+
+    /// How the scene's façades look under this condition.
+    pub fn facades(&self) -> Facades {
+        match self {
+            Condition::LowTexture => Facades::Bare,
+            Condition::RepeatedTexture => Facades::Repeated,
+            _ => Facades::Varied,
         }
     }
 }
@@ -151,7 +172,9 @@ impl Condition {
     ) -> Photometry {
         let middle = frames / 2;
         match self {
-            Condition::Normal => Photometry::IDENTITY,
+            Condition::Normal | Condition::LowTexture | Condition::RepeatedTexture => {
+                Photometry::IDENTITY
+            }
             Condition::LightRamp => {
                 let t = index as f64 / (frames.max(2) - 1) as f64;
                 Photometry {

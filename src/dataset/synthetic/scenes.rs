@@ -7,7 +7,7 @@ use nalgebra::{Point3, Vector3};
 
 use super::config::{SceneName, SyntheticConfig};
 use super::rng::{mix64, SplitMix64};
-use super::styles;
+use super::styles::{self, Facades};
 use super::trajectory::{PathShape, Trajectory, Wobble};
 use super::world::{Plane, Skyline, World};
 
@@ -94,6 +94,7 @@ fn horizontal(
 /// The `loop` scene: a 60 m × 40 m block; the car drives 5 m from its
 /// façades, the opposite façades are 14 m away; one lap ≈ 231 m.
 fn block_ring(config: &SyntheticConfig, nominal_step: f64) -> Scene {
+    let facades = config.condition.facades();
     let seed = config.seed;
     let (half_x, half_z, offset, street) = (30.0, 20.0, 5.0, 14.0);
     let (shape, step, frames_per_lap) = ring_path([half_x, half_z], offset, nominal_step);
@@ -104,10 +105,10 @@ fn block_ring(config: &SyntheticConfig, nominal_step: f64) -> Scene {
     let (inner_z, outer_z) = ([-half_z, half_z], [-half_z - street, half_z + street]);
     let ground = CAR_CAMERA_HEIGHT;
     let mut planes = rectangle_walls(inner_x, inner_z, true, |a, b, i| {
-        building_row(a, b, ground, mix64(seed ^ (10 + i)), 0.0)
+        building_row(a, b, ground, (mix64(seed ^ (10 + i)), facades), 0.0)
     });
     planes.extend(rectangle_walls(outer_x, outer_z, false, |a, b, i| {
-        building_row(a, b, ground, mix64(seed ^ (20 + i)), 0.25)
+        building_row(a, b, ground, (mix64(seed ^ (20 + i)), facades), 0.25)
     }));
     let margin = 40.0;
     planes.push(horizontal(
@@ -130,8 +131,14 @@ fn block_ring(config: &SyntheticConfig, nominal_step: f64) -> Scene {
 }
 
 /// A row of façades of different heights from `from` to `to`.
-fn building_row(from: [f64; 2], to: [f64; 2], ground: f64, seed: u64, gaps: f64) -> Plane {
-    Plane::wall(from, to, ground, 0.0, styles::facade(seed)).with_skyline(Skyline {
+fn building_row(
+    from: [f64; 2],
+    to: [f64; 2],
+    ground: f64,
+    (seed, facades): (u64, Facades),
+    gaps: f64,
+) -> Plane {
+    Plane::wall(from, to, ground, 0.0, facades.texture(seed)).with_skyline(Skyline {
         segment: 12.0,
         min_height: 7.0,
         max_height: 22.0,
@@ -143,18 +150,25 @@ fn building_row(from: [f64; 2], to: [f64; 2], ground: f64, seed: u64, gaps: f64)
 /// The `straight` scene: a street 14 m wide, buildings on both sides with
 /// side-street gaps, a wall far ahead.
 fn straight_street(config: &SyntheticConfig, step: f64) -> Scene {
+    let facades = config.condition.facades();
     let seed = config.seed;
     let frames = config.frames.unwrap_or(DEFAULT_OPEN_FRAMES);
     let far = frames as f64 * step + 80.0;
     let ground = CAR_CAMERA_HEIGHT;
     let (left_x, right_x, back) = (-8.0, 6.0, -30.0);
     let planes = vec![
-        building_row([left_x, back], [left_x, far], ground, mix64(seed ^ 40), 0.3),
+        building_row(
+            [left_x, back],
+            [left_x, far],
+            ground,
+            (mix64(seed ^ 40), facades),
+            0.3,
+        ),
         building_row(
             [right_x, far],
             [right_x, back],
             ground,
-            mix64(seed ^ 41),
+            (mix64(seed ^ 41), facades),
             0.3,
         ),
         Plane::wall(
@@ -162,7 +176,7 @@ fn straight_street(config: &SyntheticConfig, step: f64) -> Scene {
             [60.0, far],
             ground,
             30.0,
-            styles::facade(mix64(seed ^ 42)),
+            facades.texture(mix64(seed ^ 42)),
         ),
         horizontal(
             ground,
@@ -250,7 +264,7 @@ struct Stretch {
 /// at its own beginning (left) or end (right), so that two stretches with
 /// the same seed and length look exactly alike. Where the distance
 /// changes, the side face of the building that stands out closes the gap.
-fn street_side(stretches: &[Stretch], left: bool, ground: f64) -> Vec<Plane> {
+fn street_side(stretches: &[Stretch], left: bool, ground: f64, facades: Facades) -> Vec<Plane> {
     let sign = if left { -1.0 } else { 1.0 };
     let row = |s: &Stretch| {
         let (x, [z0, z1]) = (sign * s.distance, s.z);
@@ -260,7 +274,7 @@ fn street_side(stretches: &[Stretch], left: bool, ground: f64) -> Vec<Plane> {
         } else {
             ([x, z1], [x, z0])
         };
-        building_row(from, to, ground, s.seed, s.gaps)
+        building_row(from, to, ground, (s.seed, facades), s.gaps)
     };
     // The skyline height of `s`'s row at z (just inside its ends).
     let height_at = |s: &Stretch, plane: &Plane, z: f64| {
@@ -299,7 +313,7 @@ fn street_side(stretches: &[Stretch], left: bool, ground: f64) -> Vec<Plane> {
             to,
             ground,
             height,
-            styles::facade(mix64(owner.seed ^ 1)),
+            facades.texture(mix64(owner.seed ^ 1)),
         ));
     }
     planes
@@ -336,6 +350,7 @@ fn street_side(stretches: &[Stretch], left: bool, ground: f64) -> Vec<Plane> {
 /// 70–100 and in place B in frames 170–200; the default 300 frames end
 /// 100 m past B. The places do not move with the speed or the frame count.
 fn aliasing_street(config: &SyntheticConfig, step: f64) -> Scene {
+    let facades = config.condition.facades();
     let seed = config.seed;
     let layout = ALIASING_LAYOUT;
     let frames = config.frames.unwrap_or_else(|| layout.default_frames(step));
@@ -364,14 +379,14 @@ fn aliasing_street(config: &SyntheticConfig, step: f64) -> Scene {
             place(layout.place_b, layout.walls_b),
             street(2, [layout.place_b[1], far]),
         ];
-        planes.extend(street_side(&stretches, left, ground));
+        planes.extend(street_side(&stretches, left, ground, facades));
     }
     planes.push(Plane::wall(
         [-60.0, far],
         [60.0, far],
         ground,
         30.0,
-        styles::facade(mix64(seed ^ 130)),
+        facades.texture(mix64(seed ^ 130)),
     ));
     planes.push(horizontal(
         ground,
@@ -465,6 +480,7 @@ fn ring_corridor(config: &SyntheticConfig, nominal_step: f64) -> Scene {
 /// About 45 planes for the default 300 frames; the world grows with
 /// `frames × step` (at least 300 frames' worth).
 fn highway(config: &SyntheticConfig, step: f64) -> Scene {
+    let facades = config.condition.facades();
     let seed = config.seed;
     let frames = config.frames.unwrap_or(DEFAULT_HIGHWAY_FRAMES);
     let ground = CAR_CAMERA_HEIGHT;
@@ -555,7 +571,7 @@ fn highway(config: &SyntheticConfig, step: f64) -> Scene {
         0.0,
         true,
     ));
-    planes.extend(roadside_objects(seed, ground, end - 60.0));
+    planes.extend(roadside_objects(seed, ground, end - 60.0, facades));
     Scene {
         world: World::new(planes),
         trajectory: Trajectory {
@@ -601,7 +617,7 @@ fn far_skyline(
 /// or 10–14 m left of the path, 1.5–2.5 m above the ground), a barrier
 /// panel along the road (5.5–7 m right or 9.5–11 m left) or a cabinet
 /// (its front and its road-side face, 7–14 m away).
-fn roadside_objects(seed: u64, ground: f64, until: f64) -> Vec<Plane> {
+fn roadside_objects(seed: u64, ground: f64, until: f64, facades: Facades) -> Vec<Plane> {
     let mut rng = SplitMix64::new(mix64(seed ^ 95));
     let mut planes = Vec::new();
     let mut z = 25.0 + rng.uniform(0.0, 20.0);
@@ -649,14 +665,14 @@ fn roadside_objects(seed: u64, ground: f64, until: f64) -> Vec<Plane> {
                 to,
                 ground,
                 height,
-                styles::facade(texture_seed),
+                facades.texture(texture_seed),
             ));
         } else {
             let near = rng.uniform(7.0, 14.0);
             let (width, depth) = (rng.uniform(2.0, 3.0), rng.uniform(3.0, 6.0));
             let height = rng.uniform(2.2, 3.5);
             let (x_near, x_far) = (side * near, side * (near + width));
-            let texture = styles::facade(texture_seed);
+            let texture = facades.texture(texture_seed);
             let (front_from, front_to) = if side > 0.0 {
                 ([x_near, z], [x_far, z])
             } else {

@@ -66,6 +66,68 @@ pub fn facade(seed: u64) -> Texture {
     })
 }
 
+/// How a scene's façades look; a hard condition can change them
+/// (see [`super::conditions::Condition::facades`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Facades {
+    /// Each façade its own mix of windows, panels and marks ([`facade`]).
+    #[default]
+    Varied,
+    /// Mostly bare plaster: low texture ([`bare_facade`]).
+    Bare,
+    /// One periodic pattern on every façade: repeated texture
+    /// ([`repeated_facade`]).
+    Repeated,
+}
+
+impl Facades {
+    /// The texture of the façade with `seed`.
+    pub fn texture(self, seed: u64) -> Texture {
+        match self {
+            Facades::Varied => facade(seed),
+            Facades::Bare => bare_facade(seed),
+            Facades::Repeated => repeated_facade(),
+        }
+    }
+}
+
+/// A low-texture façade: smooth shading over bare plaster, three quarters
+/// of 5-m zones without any detail, sparse windows and a few panels.
+pub fn bare_facade(seed: u64) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 150.0,
+        shading: 22.0,
+        shading_wavelength: 6.0,
+        flat_zone_size: 5.0,
+        flat_zone_fraction: 0.75,
+        layers: vec![
+            grid([3.0, 3.2], 0.3, 0.5, [60.0, 110.0]),
+            scatter(2.3, 0.15, ShapeKind::Rectangle, [0.3, 0.8], [90.0, 200.0]),
+        ],
+    })
+}
+
+/// A repeated-texture façade, the same on every wall (the seed is not
+/// used): a regular grid of identical framed windows and small marks,
+/// periodic with 3 m × 3.2 m, and nothing else: every window looks like
+/// every other.
+pub fn repeated_facade() -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed: 0,
+        base_gray: 150.0,
+        shading: 0.0,
+        shading_wavelength: 6.0,
+        flat_zone_size: 5.0,
+        flat_zone_fraction: 0.0,
+        layers: vec![
+            grid([3.0, 3.2], 1.0, 0.6, [200.0, 200.0]),
+            grid([3.0, 3.2], 1.0, 0.4, [50.0, 50.0]),
+            grid([1.0, 1.6], 1.0, 0.2, [90.0, 90.0]),
+        ],
+    })
+}
+
 /// Asphalt: repair patches, stains and manholes, gravel speckle; a third
 /// of 6-m zones are fresh, even tarmac.
 pub fn asphalt(seed: u64) -> Texture {
@@ -209,4 +271,63 @@ pub fn hillside(seed: u64) -> Texture {
             scatter(0.8, 0.4, ShapeKind::Rectangle, [0.3, 0.7], [60.0, 200.0]),
         ],
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dataset::synthetic::texture::Footprint;
+
+    const FINE: Footprint = Footprint { du: 0.01, dv: 0.01 };
+
+    /// Share of sample points (every 5 cm over 30 m × 15 m) whose gray
+    /// differs by more than 10 levels from the point 5 cm to the right.
+    fn edge_share(texture: &Texture) -> f64 {
+        let (mut edges, mut total) = (0usize, 0usize);
+        for i in 0..600 {
+            for j in 0..300 {
+                let (u, v) = (i as f64 * 0.05, j as f64 * 0.05);
+                let step = texture.sample(u + 0.05, v, FINE) - texture.sample(u, v, FINE);
+                edges += usize::from(step.abs() > 10.0);
+                total += 1;
+            }
+        }
+        edges as f64 / total as f64
+    }
+
+    #[test]
+    fn the_repeated_facade_is_the_same_on_every_wall_and_periodic() {
+        let (a, b) = (repeated_facade(), Facades::Repeated.texture(12345));
+        let mut grays = Vec::new();
+        for i in 0..97 {
+            let (u, v) = (0.137 * i as f64, 0.291 * i as f64);
+            let g = a.sample(u, v, FINE);
+            assert_eq!(g, b.sample(u, v, FINE), "the seed changes nothing");
+            for (du, dv) in [(3.0, 0.0), (0.0, 3.2), (6.0, 6.4)] {
+                let shifted = a.sample(u + du, v + dv, FINE);
+                assert!((g - shifted).abs() < 1e-9, "({u}, {v}) + ({du}, {dv})");
+            }
+            grays.push(g);
+        }
+        let distinct = grays
+            .iter()
+            .filter(|&&g| (g - grays[0]).abs() > 20.0)
+            .count();
+        assert!(distinct > 10, "the pattern has contrast: {grays:?}");
+    }
+
+    #[test]
+    fn the_bare_facade_has_far_fewer_edges_than_the_varied_one() {
+        for seed in [1, 2, 3] {
+            let (varied, bare) = (edge_share(&facade(seed)), edge_share(&bare_facade(seed)));
+            eprintln!("seed {seed}: edge share varied {varied:.4}, bare {bare:.4}");
+            assert!(bare > 0.0, "seed {seed}: some texture is left");
+            assert!(
+                bare < 0.4 * varied,
+                "seed {seed}: bare {bare}, varied {varied}"
+            );
+        }
+        assert_eq!(Facades::Varied.texture(7), facade(7));
+        assert_eq!(Facades::Bare.texture(7), bare_facade(7));
+    }
 }
