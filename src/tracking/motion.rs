@@ -97,6 +97,7 @@ pub(crate) fn track_with_motion_model(
     if matches < 20 {
         tracing::debug!(
             frame = frame.index,
+            projected = points.len(),
             matches,
             "motion model: too few matches"
         );
@@ -161,6 +162,13 @@ fn track_by_descriptors(
 ) -> Result<bool, SlamError> {
     let matches = match_descriptors(frame, map, points, 0.7)?;
     if matches.len() < 15 {
+        tracing::debug!(
+            frame = frame.index,
+            against,
+            points = points.len(),
+            matches = matches.len(),
+            "descriptor tracking: too few matches"
+        );
         return Ok(false);
     }
     let assign = |frame: &mut Frame| {

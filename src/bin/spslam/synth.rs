@@ -59,9 +59,13 @@ pub struct SynthArgs {
     /// second lap on, or the middle frame: dark, with shot and read noise),
     /// low-light (dark and noisy throughout), blackout (8 black frames
     /// in the middle: a kidnap), low-texture (façades of mostly bare
-    /// plaster) or repeated-texture (every façade the same grid of
-    /// identical windows). A condition's own noise applies even with
-    /// --clean.
+    /// plaster), repeated-texture (every façade the same grid of
+    /// identical windows), turn-in-place (in the middle the camera stops
+    /// and turns once round in 36 frames, up to 20° per frame) or
+    /// jump-back (in the middle the camera is carried back a quarter of
+    /// the path, to a place it has seen: a kidnap). The last two add
+    /// their frames to --frames. A condition's own noise applies even
+    /// with --clean.
     #[arg(long, default_value = "normal")]
     condition: Condition,
     /// Render without noise, exposure change or blur.

@@ -1,18 +1,20 @@
 //! Hard imaging conditions for a synthetic sequence: light that changes
 //! (a ramp, flicker, a second lap at dusk), low light with shot and read
-//! noise, a kidnap (black frames), and façades with low or repeated
-//! texture. They change only the images: the poses and depth maps, and so
-//! the ground truth, stay exact.
+//! noise, a kidnap (black frames), façades with low or repeated texture,
+//! and two changes of the motion (a fast turn in place, a kidnap by a jump
+//! back). The ground truth stays exact: the images change, or the path is
+//! re-timed by a [`Manoeuvre`] that the poses follow.
 
 use std::fmt;
 use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
+use super::manoeuvre::{Manoeuvre, TURN_IN_PLACE_FRAMES};
 use super::rng::{mix64, unit_from_bits};
 use super::styles::Facades;
 
-/// A hard condition applied to every image of a sequence.
+/// A hard condition applied to a sequence's images or motion.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Condition {
@@ -42,11 +44,19 @@ pub enum Condition {
     /// Repeated texture: every façade shows the same periodic grid of
     /// identical windows and panels.
     RepeatedTexture,
+    /// Fast rotation: in the middle of the sequence the camera stops and
+    /// turns once round in place over [`TURN_IN_PLACE_FRAMES`] frames (up
+    /// to 20° per frame), then drives on.
+    TurnInPlace,
+    /// A kidnap by a jump: in the middle of the sequence the camera is
+    /// carried back a quarter of the sequence's path to a place it has
+    /// seen, and drives on from there; tracking must relocalise in the map.
+    JumpBack,
 }
 
 impl Condition {
     /// All conditions, in the order they are documented.
-    pub const ALL: [Condition; 8] = [
+    pub const ALL: [Condition; 10] = [
         Condition::Normal,
         Condition::LightRamp,
         Condition::Flicker,
@@ -55,6 +65,8 @@ impl Condition {
         Condition::Blackout,
         Condition::LowTexture,
         Condition::RepeatedTexture,
+        Condition::TurnInPlace,
+        Condition::JumpBack,
     ];
 
     /// The name used on the command line.
@@ -68,6 +80,8 @@ impl Condition {
             Condition::Blackout => "blackout",
             Condition::LowTexture => "low-texture",
             Condition::RepeatedTexture => "repeated-texture",
+            Condition::TurnInPlace => "turn-in-place",
+            Condition::JumpBack => "jump-back",
         }
     }
 
@@ -77,6 +91,23 @@ impl Condition {
             Condition::LowTexture => Facades::Bare,
             Condition::RepeatedTexture => Facades::Repeated,
             _ => Facades::Varied,
+        }
+    }
+
+    /// The change of the camera's motion under this condition, for a
+    /// scene of `frames` frames without it (placed in their middle).
+    pub fn manoeuvre(&self, frames: usize) -> Option<Manoeuvre> {
+        let at = frames / 2;
+        match self {
+            Condition::TurnInPlace => Some(Manoeuvre::TurnInPlace {
+                at,
+                frames: TURN_IN_PLACE_FRAMES,
+            }),
+            Condition::JumpBack => Some(Manoeuvre::JumpBack {
+                at,
+                frames: frames / 4,
+            }),
+            _ => None,
         }
     }
 }
@@ -172,9 +203,11 @@ impl Condition {
     ) -> Photometry {
         let middle = frames / 2;
         match self {
-            Condition::Normal | Condition::LowTexture | Condition::RepeatedTexture => {
-                Photometry::IDENTITY
-            }
+            Condition::Normal
+            | Condition::LowTexture
+            | Condition::RepeatedTexture
+            | Condition::TurnInPlace
+            | Condition::JumpBack => Photometry::IDENTITY,
             Condition::LightRamp => {
                 let t = index as f64 / (frames.max(2) - 1) as f64;
                 Photometry {

@@ -2,8 +2,8 @@
 //! planes (a city block, a street, a ring corridor, an open highway with
 //! its texture mostly far away, a street with two look-alike places)
 //! ray-cast from a rectified stereo camera along a trajectory, with depth
-//! for RGB-D, and hard conditions (light changes, low light, a kidnap) on
-//! the images.
+//! for RGB-D, and hard conditions (light changes, low light, bare or repeated
+//! façades, a fast turn in place, a kidnap by black frames or by a jump).
 //!
 //! Everything is a pure function of [`SyntheticConfig`] (its seed
 //! included): the same config writes byte-identical files.
@@ -25,6 +25,7 @@ mod camera;
 mod conditions;
 mod config;
 mod error;
+mod manoeuvre;
 mod noise;
 mod render;
 mod rng;
@@ -40,6 +41,7 @@ pub use camera::StereoCamera;
 pub use conditions::{Condition, Photometry, BLACKOUT_FRAMES};
 pub use config::{SceneName, SyntheticConfig};
 pub use error::{Result, SyntheticError};
+pub use manoeuvre::{Manoeuvre, TURN_IN_PLACE_FRAMES};
 pub use render::{render_view, View};
 pub use rng::SplitMix64;
 pub use scenes::{build_scene, AliasingLayout, Scene, ALIASING_LAYOUT};

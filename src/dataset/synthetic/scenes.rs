@@ -33,15 +33,24 @@ pub struct Scene {
 }
 
 /// Builds the scene the config names.
+///
+/// A condition's manoeuvre (a turn in place, a jump back) is placed in the
+/// middle of the frames the scene has without it, and adds its frames, so
+/// the path still ends where it would.
 pub fn build_scene(config: &SyntheticConfig) -> Scene {
     let nominal_step = config.speed / config.fps;
-    match config.scene {
+    let mut scene = match config.scene {
         SceneName::Loop => block_ring(config, nominal_step),
         SceneName::Straight => straight_street(config, nominal_step),
         SceneName::Wobbly => ring_corridor(config, nominal_step),
         SceneName::Highway => highway(config, nominal_step),
         SceneName::Aliasing => aliasing_street(config, nominal_step),
+    };
+    if let Some(manoeuvre) = config.condition.manoeuvre(scene.frames) {
+        scene.trajectory.manoeuvre = Some(manoeuvre);
+        scene.frames += manoeuvre.extra_frames();
     }
+    scene
 }
 
 /// A rounded-rectangle path `offset` metres outside an inner rectangle,
@@ -125,6 +134,7 @@ fn block_ring(config: &SyntheticConfig, nominal_step: f64) -> Scene {
             step,
             fps: config.fps,
             wobble: None,
+            manoeuvre: None,
         },
         frames: config.frames.unwrap_or(frames_per_lap + 1),
     }
@@ -193,6 +203,7 @@ fn straight_street(config: &SyntheticConfig, step: f64) -> Scene {
             step,
             fps: config.fps,
             wobble: None,
+            manoeuvre: None,
         },
         frames,
     }
@@ -402,6 +413,7 @@ fn aliasing_street(config: &SyntheticConfig, step: f64) -> Scene {
             step,
             fps: config.fps,
             wobble: None,
+            manoeuvre: None,
         },
         frames,
     }
@@ -457,6 +469,7 @@ fn ring_corridor(config: &SyntheticConfig, nominal_step: f64) -> Scene {
                 translation: 0.03,
                 seed: mix64(seed ^ 70),
             }),
+            manoeuvre: None,
         },
         frames: config.frames.unwrap_or(DEFAULT_OPEN_FRAMES),
     }
@@ -579,6 +592,7 @@ fn highway(config: &SyntheticConfig, step: f64) -> Scene {
             step,
             fps: config.fps,
             wobble: None,
+            manoeuvre: None,
         },
         frames,
     }

@@ -384,4 +384,52 @@ mod tests {
             .all(|&v| v == 0));
         assert!(mean(&kidnap.render(middle + BLACKOUT_FRAMES, false).left) > 20.0);
     }
+
+    #[test]
+    fn a_turn_in_place_and_a_jump_back_re_time_the_same_lap() {
+        use crate::dataset::synthetic::conditions::Condition;
+        use crate::dataset::synthetic::manoeuvre::TURN_IN_PLACE_FRAMES;
+        let mut c = small(SceneName::Loop);
+        c.frames = None;
+        let normal = SyntheticSequence::new(c.clone()).unwrap();
+        let (n, middle) = (normal.len(), normal.len() / 2);
+        let gap = |a: Isometry3<f64>, b: Isometry3<f64>| {
+            let d = a.inverse() * b;
+            (d.translation.vector.norm(), d.rotation.angle())
+        };
+
+        c.condition = Condition::TurnInPlace;
+        let turn = SyntheticSequence::new(c.clone()).unwrap();
+        assert_eq!(turn.len(), n + TURN_IN_PLACE_FRAMES);
+        for i in [0, middle / 2, middle] {
+            assert_eq!(turn.pose(i), normal.pose(i), "frame {i} before the turn");
+        }
+        let mut turned = 0.0;
+        for i in middle + 1..=middle + TURN_IN_PLACE_FRAMES {
+            let (moved, angle) = gap(turn.pose(i - 1), turn.pose(i));
+            assert!(moved < 1e-9, "frame {i}: stands still, moved {moved} m");
+            assert!(angle.to_degrees() < 20.01, "frame {i}: {angle} rad");
+            turned += angle;
+        }
+        assert!((turned.to_degrees() - 360.0).abs() < 1e-6, "{turned}");
+        for i in [middle + 1, n - 1] {
+            let (moved, angle) = gap(normal.pose(i), turn.pose(i + TURN_IN_PLACE_FRAMES));
+            assert!(moved < 1e-9 && angle < 1e-9, "frame {i} after the turn");
+        }
+
+        c.condition = Condition::JumpBack;
+        let jump = SyntheticSequence::new(c).unwrap();
+        let back = n / 4;
+        assert_eq!(jump.len(), n + back);
+        assert_eq!(jump.pose(middle - 1), normal.pose(middle - 1));
+        for i in [middle, n - 1 + back] {
+            let (moved, angle) = gap(normal.pose(i - back), jump.pose(i));
+            assert!(moved < 1e-9 && angle < 1e-9, "frame {i} after the jump");
+        }
+        // The jump is a kidnap: far from where the camera was.
+        let (moved, _) = gap(jump.pose(middle - 1), jump.pose(middle));
+        assert!(moved > 30.0, "the jump moves {moved} m");
+        // The ground truth still ends where the lap does.
+        assert!(gap(jump.pose(jump.len() - 1), Isometry3::identity()).0 < 1e-9);
+    }
 }

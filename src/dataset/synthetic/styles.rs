@@ -48,14 +48,10 @@ fn grid(cell: [f64; 2], occupancy: f64, size: f64, gray: [f64; 2]) -> ShapeLayer
 /// A building façade: rows of windows, panels and posters, checkers,
 /// discs and small marks; a quarter of 5-m zones are bare plaster.
 pub fn facade(seed: u64) -> Texture {
-    Texture::Procedural(ProceduralTexture {
+    plaster(
         seed,
-        base_gray: 150.0,
-        shading: 22.0,
-        shading_wavelength: 6.0,
-        flat_zone_size: 5.0,
-        flat_zone_fraction: 0.25,
-        layers: vec![
+        0.25,
+        vec![
             grid([3.0, 3.2], 0.85, 0.5, [25.0, 110.0]),
             scatter(2.3, 0.35, ShapeKind::Rectangle, [0.3, 0.8], [40.0, 220.0]),
             scatter(1.1, 0.25, ShapeKind::Checker, [0.25, 0.55], [10.0, 90.0]),
@@ -63,6 +59,21 @@ pub fn facade(seed: u64) -> Texture {
             scatter(0.3, 0.45, ShapeKind::Rectangle, [0.3, 0.7], [50.0, 200.0]),
             scatter(0.1, 0.3, ShapeKind::Rectangle, [0.3, 0.7], [110.0, 190.0]),
         ],
+    )
+}
+
+/// The plaster every varied or bare façade is painted on: gray 150 with
+/// smooth 6-m shading, `flat_zone_fraction` of 5-m zones left without
+/// detail, and `layers` on top.
+fn plaster(seed: u64, flat_zone_fraction: f64, layers: Vec<ShapeLayer>) -> Texture {
+    Texture::Procedural(ProceduralTexture {
+        seed,
+        base_gray: 150.0,
+        shading: 22.0,
+        shading_wavelength: 6.0,
+        flat_zone_size: 5.0,
+        flat_zone_fraction,
+        layers,
     })
 }
 
@@ -94,18 +105,14 @@ impl Facades {
 /// A low-texture façade: smooth shading over bare plaster, three quarters
 /// of 5-m zones without any detail, sparse windows and a few panels.
 pub fn bare_facade(seed: u64) -> Texture {
-    Texture::Procedural(ProceduralTexture {
+    plaster(
         seed,
-        base_gray: 150.0,
-        shading: 22.0,
-        shading_wavelength: 6.0,
-        flat_zone_size: 5.0,
-        flat_zone_fraction: 0.75,
-        layers: vec![
+        0.75,
+        vec![
             grid([3.0, 3.2], 0.3, 0.5, [60.0, 110.0]),
             scatter(2.3, 0.15, ShapeKind::Rectangle, [0.3, 0.8], [90.0, 200.0]),
         ],
-    })
+    )
 }
 
 /// A repeated-texture façade, the same on every wall (the seed is not

@@ -8,6 +8,7 @@ use std::f64::consts::{FRAC_PI_2, TAU};
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 
+use super::manoeuvre::Manoeuvre;
 use super::rng::SplitMix64;
 
 /// The centre line the camera follows, on the plane y = 0.
@@ -52,6 +53,8 @@ pub struct Trajectory {
     pub fps: f64,
     /// Hand-held shake, when set.
     pub wobble: Option<Wobble>,
+    /// A turn in place or a jump back, when set.
+    pub manoeuvre: Option<Manoeuvre>,
 }
 
 impl PathShape {
@@ -150,8 +153,9 @@ impl Trajectory {
     /// The left camera's T_wc at frame `frame` (fractional frames are the
     /// poses in between, used for motion blur).
     pub fn pose(&self, frame: f64) -> Isometry3<f64> {
-        let ([x, z], heading) = self.shape.at(frame * self.step);
-        let yaw = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), heading);
+        let (path_frame, turn) = self.manoeuvre.map_or((frame, 0.0), |m| m.warp(frame));
+        let ([x, z], heading) = self.shape.at(path_frame * self.step);
+        let yaw = UnitQuaternion::from_axis_angle(&Vector3::y_axis(), heading + turn);
         let mut rotation = yaw;
         let mut position = Vector3::new(x, 0.0, z);
         if let Some(wobble) = &self.wobble {
@@ -182,6 +186,7 @@ mod tests {
             step,
             fps: 10.0,
             wobble: None,
+            manoeuvre: None,
         }
     }
 
