@@ -132,6 +132,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
             inliers: (row.inliers * r).round() as usize,
             max_frames: 10,
             mapping_queue: row.queue,
+            velocity: None,
         };
         assert_eq!(
             needs_keyframe(&frame, &map, &world.rig, &ctx),
@@ -150,6 +151,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         inliers: (0.6 * r) as usize,
         max_frames: 10,
         mapping_queue: 0,
+        velocity: None,
     };
     assert!(
         needs_keyframe(&frame, &map, &world.rig, &ctx),
@@ -163,6 +165,66 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
     assert!(
         !needs_keyframe(&frame, &map, &world.rig, &ctx),
         "recently relocalised"
+    );
+}
+
+#[test]
+fn tracked_points_about_to_leave_the_view_ask_for_a_keyframe() {
+    // spslam's addition to ORB-SLAM3's close-point condition: it is
+    // applied to the next frame as the motion model predicts it. In a fast
+    // turn the tracked points slide out at one side (the turn-in-place lap
+    // lost RGB-D tracking so: 160 inliers, then none in view).
+    let world = PointWorld::new(3, 2000, (14.0, 5.0, 4.0, 40.0));
+    let (mut map, kfs) = world.keyframe_chain(3);
+    let reference = kfs[2].0;
+    let pose = pose_at(Vector3::new(0.0, 0.0, 1.0), 0.0);
+    let (mut frame, view) = world.frame(30, &pose, true);
+    let close: Vec<usize> = (0..frame.len())
+        .filter(|&i| frame.depth(i).is_some_and(|d| d < world.rig.close_depth))
+        .collect();
+    // 200 tracked close points spread over the image, the rest untracked:
+    // ORB-SLAM3's condition holds off (≥ 100 tracked).
+    let tracked: Vec<usize> = close
+        .iter()
+        .copied()
+        .step_by((close.len() / 200).max(1))
+        .take(200)
+        .collect();
+    assert!(
+        tracked.len() == 200 && close.len() > 200 + 70,
+        "{} close keypoints",
+        close.len()
+    );
+    // Each tracked keypoint observes a map point at its true position.
+    frame.pose_cw = pose;
+    frame.map_points.iter_mut().for_each(|p| *p = None);
+    for &i in &tracked {
+        frame.map_points[i] = Some(world.add_point(&mut map, view.point_of[i], reference));
+    }
+    let ctx = |velocity| KeyFrameContext {
+        reference,
+        last_keyframe_frame: frame.index - 1,
+        last_relocalisation_frame: None,
+        // As many inliers as the reference has points: no ratio condition.
+        inliers: 10_000,
+        max_frames: 10,
+        mapping_queue: 1,
+        velocity,
+    };
+    assert!(
+        !needs_keyframe(&frame, &map, &world.rig, &ctx(None)),
+        "no velocity: ORB-SLAM3's rule"
+    );
+    let still = crate::optim::Se3::identity();
+    assert!(
+        !needs_keyframe(&frame, &map, &world.rig, &ctx(Some(still))),
+        "a still camera keeps its points in view"
+    );
+    // Turning right by 50° per frame: most points leave the view.
+    let turning = pose_at(Vector3::zeros(), 50f64.to_radians());
+    assert!(
+        needs_keyframe(&frame, &map, &world.rig, &ctx(Some(turning))),
+        "the points leave the view in the next frame"
     );
 }
 

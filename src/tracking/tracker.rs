@@ -331,6 +331,7 @@ impl Tracker {
                 inliers,
                 max_frames: self.max_frames,
                 mapping_queue,
+                velocity: self.velocity,
             };
             needs_keyframe(&frame, map, &self.rig, &ctx)
         });
