@@ -110,7 +110,7 @@ const MAX_MAPPING_QUEUE: usize = 3;
 /// points: no keyframe, and frame 135 found none of them in view (lost,
 /// then a new map). Counting the points still in view one frame ahead
 /// catches that frame, and only then: the normal lap, KITTI 06 and the
-/// 7-Scenes kitchen keep their keyframe counts within 11 % (EVALUATION.md,
+/// 7-Scenes kitchen keep their keyframe counts within 12 % (EVALUATION.md,
 /// "Fast rotation").
 ///
 /// ORB-SLAM3 refuses every keyframe while three wait for local mapping.
