@@ -118,4 +118,14 @@ impl CameraRig {
     pub fn contains(&self, u: f64, v: f64) -> bool {
         u >= 0.0 && v >= 0.0 && u < self.width as f64 && v < self.height as f64
     }
+
+    /// The stereo projection `(u, v, u_right)` of the camera-frame point
+    /// `pc` when it lies in front of the camera and inside the image.
+    pub fn project_in_image(&self, pc: &Vector3<f64>) -> Option<Vector3<f64>> {
+        if pc.z <= 0.0 {
+            return None;
+        }
+        let uvr = self.camera.project_stereo(pc);
+        self.contains(uvr.x, uvr.y).then_some(uvr)
+    }
 }

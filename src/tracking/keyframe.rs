@@ -165,9 +165,11 @@ pub(crate) fn needs_keyframe(
         }
     }
     // ORB-SLAM3's close-point condition, on this frame and (spslam's
-    // addition) on the next one as the motion model predicts it.
+    // addition) on the next one as the motion model predicts it; the
+    // look-ahead is only computed where it can change the answer.
     let next_tracked_close = ctx
         .velocity
+        .filter(|_| tracked_close >= MIN_TRACKED_CLOSE && untracked_close > MIN_UNTRACKED_CLOSE)
         .map(|velocity| tracked_close_in_next_frame(frame, map, rig, &velocity));
     let leaving = next_tracked_close.is_some_and(|n| n < MIN_TRACKED_CLOSE);
     let need_close =
@@ -221,11 +223,8 @@ fn tracked_close_in_next_frame(frame: &Frame, map: &Map, rig: &CameraRig, veloci
         .filter_map(|i| frame.map_points[i].and_then(|p| map.resolve_point(p)))
         .filter_map(|id| map.map_point(id).ok())
         .filter(|p| {
-            let pc = next.transform_point(&p.position);
-            pc.z > 0.0 && {
-                let uv = rig.camera.project_stereo(&pc);
-                rig.contains(uv.x, uv.y)
-            }
+            rig.project_in_image(&next.transform_point(&p.position))
+                .is_some()
         })
         .count()
 }

@@ -35,14 +35,9 @@ fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &CameraRig) ->
             continue;
         };
         let Ok(p) = map.map_point(id) else { continue };
-        let pc = frame.pose_cw.transform_point(&p.position);
-        if pc.z <= 0.0 {
+        let Some(uvr) = rig.project_in_image(&frame.pose_cw.transform_point(&p.position)) else {
             continue;
-        }
-        let uvr = rig.camera.project_stereo(&pc);
-        if !rig.contains(uvr.x, uvr.y) {
-            continue;
-        }
+        };
         out.push(VisiblePoint {
             id,
             u: uvr.x as f32,

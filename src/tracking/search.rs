@@ -37,14 +37,7 @@ pub(crate) fn visible_in_frame(
     rig: &CameraRig,
 ) -> Option<VisiblePoint> {
     let p = map.map_point(id).ok()?;
-    let pc = frame.pose_cw.transform_point(&p.position);
-    if pc.z <= 0.0 {
-        return None;
-    }
-    let uvr = rig.camera.project_stereo(&pc);
-    if !rig.contains(uvr.x, uvr.y) {
-        return None;
-    }
+    let uvr = rig.project_in_image(&frame.pose_cw.transform_point(&p.position))?;
     let ray: Vector3<f64> = p.position - frame.camera_center();
     let distance = ray.norm();
     if !p.in_distance_range(distance) {
