@@ -54,7 +54,8 @@ fn modified(path: &Path) -> std::time::SystemTime {
 }
 
 /// The quick set, as `make test` runs it: two extractors on a synthetic
-/// corner (RGB-D) and on KITTI 06 (stereo). Measured (Intel Xeon, AVX-512
+/// corner (RGB-D) and on KITTI 06 (stereo), and place recognition judged
+/// against KITTI 06's ground truth. Measured (Intel Xeon, AVX-512
 /// VNNI): every frame tracked; ATE 0.07-0.14 % of the path. Bounds: every
 /// frame tracked, ATE <= 0.3 % of the path (2x the worst).
 #[test]
@@ -117,6 +118,19 @@ fn the_quick_set_runs_summarises_skips_finished_cases_and_lists_commands() {
         );
     }
     assert!(modified(&out.join("summary_ate.png")) > std::time::UNIX_EPOCH);
+    // The place case: spslam loops judged against KITTI 06's ground truth,
+    // gathered in the summary.
+    let place = summary["place"].as_array().expect("place");
+    assert_eq!(place.len(), 1, "{}", logs(&first));
+    assert_eq!(place[0]["case"], "place_kitti06");
+    assert_eq!(place[0]["images"], 51);
+    assert_eq!(place[0]["curves"].as_array().map(Vec::len), Some(4));
+    for needle in ["### Place recognition", "| place_kitti06 | 51 | 0 |"] {
+        assert!(
+            markdown.contains(needle),
+            "summary.md lacks {needle}:\n{markdown}"
+        );
+    }
 
     // Again: nothing re-runs.
     let report = out.join("runs/kitti06_stereo_orb/report.json");
@@ -124,7 +138,7 @@ fn the_quick_set_runs_summarises_skips_finished_cases_and_lists_commands() {
     let again = evaluate(&cases, &out, &data, &["--set", "quick"]);
     assert!(again.status.success(), "{}", logs(&again));
     assert!(
-        String::from_utf8_lossy(&again.stderr).contains("4 of 4 cases already finished"),
+        String::from_utf8_lossy(&again.stderr).contains("5 of 5 cases already finished"),
         "{}",
         logs(&again)
     );
@@ -135,7 +149,8 @@ fn the_quick_set_runs_summarises_skips_finished_cases_and_lists_commands() {
     assert!(list.status.success(), "{}", logs(&list));
     let text = String::from_utf8_lossy(&list.stdout).to_string();
     let lines: Vec<&str> = text.lines().collect();
-    assert_eq!(lines.len(), 4, "{text}");
+    assert_eq!(lines.len(), 5, "{text}");
+    assert!(lines[4].ends_with("--case place_kitti06"), "{text}");
     assert!(lines[2].ends_with("--case kitti06_stereo_orb"), "{text}");
     let listed = Command::new("sh")
         .args(["-c", lines[2]])

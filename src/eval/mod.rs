@@ -8,6 +8,7 @@ pub mod error;
 pub mod format;
 pub mod io;
 pub mod kitti_metric;
+pub mod place_recognition;
 pub mod plot;
 pub mod report;
 pub mod rpe;

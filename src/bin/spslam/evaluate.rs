@@ -8,6 +8,7 @@
 mod cases;
 mod layout;
 mod machine;
+mod place_summary;
 mod record;
 mod runner;
 mod summary;
@@ -16,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use cases::{Case, CaseList, Substitutions};
+use cases::{Case, CaseList, CaseTool, Substitutions};
 use layout::SuiteLayout;
 use runner::Runner;
 
@@ -188,19 +189,29 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
     if args.no_summary {
         return finish(&failures, cases.len(), &layout);
     }
-    let (rows, missing) = summary::collect(&layout, &cases, |c| list.definition(c));
+    let (run_cases, place_cases): (Vec<&Case>, Vec<&Case>) =
+        cases.iter().partition(|c| c.tool == CaseTool::Run);
+    let (rows, missing) = summary::collect(&layout, &run_cases, |c| list.definition(c));
+    let (place_rows, place_missing) =
+        place_summary::collect(&layout, &place_cases, |c| list.definition(c));
     let set_name = if args.only.is_empty() {
         args.set.clone()
     } else {
         args.only.join(",")
     };
-    let markdown = summary::markdown(&rows, &missing, &set_name);
+    let mut markdown = summary::markdown(&rows, &missing, &set_name);
+    markdown.push_str(&place_summary::markdown(&place_rows, &place_missing));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let summary_md = out.join("summary.md");
     std::fs::write(&summary_md, &markdown)
         .with_context(|| format!("writing {}", summary_md.display()))?;
     let summary_json = out.join("summary.json");
-    let json = serde_json::json!({ "runs": rows, "missing": missing });
+    let all_missing: Vec<&summary::MissingRun> = missing.iter().chain(&place_missing).collect();
+    let json = serde_json::json!({
+        "runs": rows,
+        "place": place_summary::json(&place_rows),
+        "missing": all_missing,
+    });
     std::fs::write(&summary_json, serde_json::to_string_pretty(&json)? + "\n")
         .with_context(|| format!("writing {}", summary_json.display()))?;
     let plot = out.join("summary_ate.png");

@@ -15,7 +15,7 @@ mod kitti_layout;
 mod output;
 mod pipeline;
 mod signals;
-mod source;
+pub(crate) mod source;
 mod tum_layout;
 
 use std::path::PathBuf;

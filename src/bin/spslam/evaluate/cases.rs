@@ -6,6 +6,7 @@
 //! ```text
 //! scene NAME SYNTH-ARGUMENTS...
 //! case  NAME GROUP SETS DATASET RUN-ARGUMENTS...
+//! place NAME SETS DATASET LOOPS-ARGUMENTS...
 //! ```
 //!
 //! A `scene` is written once by `spslam synth --out OUT/scenes/NAME
@@ -14,7 +15,9 @@
 //! same sensor, same condition: the extractors side by side) and SETS the
 //! comma-separated sets the case belongs to (`quick`, `standard`, ...). In
 //! DATASET, `$DATA` stands for the shared data folder and `@NAME` for the
-//! folder of scene NAME.
+//! folder of scene NAME. A `place` is one `spslam loops --dataset DATASET
+//! LOOPS-ARGUMENTS`: place recognition judged against the ground truth,
+//! whose precision–recall curves the summary gathers.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -51,9 +54,21 @@ pub struct Scene {
     pub synth_args: Vec<String>,
 }
 
+/// Which subcommand a case runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CaseTool {
+    /// `spslam run`: SLAM over the sequence (a `case` line).
+    Run,
+    /// `spslam loops`: place recognition judged against the ground truth
+    /// (a `place` line).
+    Loops,
+}
+
 /// One run of the suite.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Case {
+    /// The subcommand it runs.
+    pub tool: CaseTool,
     /// Its name: the folder under OUT/runs.
     pub name: String,
     /// The runs compared with each other in the summary.
@@ -62,7 +77,7 @@ pub struct Case {
     pub sets: Vec<String>,
     /// `spslam run --dataset` as written (with `$DATA` and `@SCENE`).
     pub dataset: String,
-    /// `spslam run`'s other arguments.
+    /// The subcommand's other arguments.
     pub run_args: Vec<String>,
     /// The scene its dataset names, if any.
     pub scene: Option<String>,
@@ -209,38 +224,81 @@ impl CaseList {
                             "`{name}` ends like the suite's own files (.log, .case.json)"
                         )));
                     }
-                    if list.cases.iter().any(|c| &c.name == name) {
-                        return Err(syntax(format!("case `{name}` is defined twice")));
+                    list.add_case(CaseTool::Run, name, group, sets, dataset, args)
+                        .map_err(syntax)?;
+                }
+                "place" => {
+                    let [_, name, sets, dataset, args @ ..] = words.as_slice() else {
+                        return Err(syntax(
+                            "`place` needs NAME SETS DATASET [spslam loops's arguments]".into(),
+                        ));
+                    };
+                    if !valid_name(name) || name.ends_with(".log") || name.ends_with(".case.json") {
+                        return Err(syntax(format!(
+                            "`{name}` is not a valid case name (letters, digits, _ - ., not ending in .log or .case.json)"
+                        )));
                     }
-                    let scene = scene_of(dataset);
-                    if let Some(scene) = &scene {
-                        if !list.scenes.contains_key(scene) {
-                            return Err(syntax(format!(
-                                "case `{name}` uses scene `@{scene}`, which is not defined above it"
-                            )));
-                        }
+                    if let Some(bad) =
+                        ["--dataset", "--images", "--curves"]
+                            .into_iter()
+                            .find(|flag| {
+                                args.iter()
+                                    .any(|a| a == flag || a.starts_with(&format!("{flag}=")))
+                            })
+                    {
+                        return Err(syntax(format!(
+                            "a place case's arguments must not set {bad}: the suite chooses it"
+                        )));
                     }
-                    list.cases.push(Case {
-                        name: name.clone(),
-                        group: group.clone(),
-                        sets: sets
-                            .split(',')
-                            .filter(|s| !s.is_empty())
-                            .map(str::to_owned)
-                            .collect(),
-                        dataset: dataset.clone(),
-                        run_args: args.to_vec(),
-                        scene,
-                    });
+                    list.add_case(CaseTool::Loops, name, "place", sets, dataset, args)
+                        .map_err(syntax)?;
                 }
                 other => {
                     return Err(syntax(format!(
-                        "a line starts with `scene` or `case`, not `{other}`"
+                        "a line starts with `scene`, `case` or `place`, not `{other}`"
                     )))
                 }
             }
         }
         Ok(list)
+    }
+
+    /// Adds a case after checking that its name is new and its scene is
+    /// defined; the error says what is wrong.
+    fn add_case(
+        &mut self,
+        tool: CaseTool,
+        name: &str,
+        group: &str,
+        sets: &str,
+        dataset: &str,
+        args: &[String],
+    ) -> Result<(), String> {
+        if self.cases.iter().any(|c| c.name == name) {
+            return Err(format!("case `{name}` is defined twice"));
+        }
+        let scene = scene_of(dataset);
+        if let Some(scene) = &scene {
+            if !self.scenes.contains_key(scene) {
+                return Err(format!(
+                    "case `{name}` uses scene `@{scene}`, which is not defined above it"
+                ));
+            }
+        }
+        self.cases.push(Case {
+            tool,
+            name: name.to_owned(),
+            group: group.to_owned(),
+            sets: sets
+                .split(',')
+                .filter(|s| !s.is_empty())
+                .map(str::to_owned)
+                .collect(),
+            dataset: dataset.to_owned(),
+            run_args: args.to_vec(),
+            scene,
+        });
+        Ok(())
     }
 
     /// The cases of `set` (every case for `all`), or the named ones.
@@ -278,7 +336,11 @@ impl CaseList {
     /// it in the tables). A finished run whose definition changed is run
     /// again.
     pub fn definition(&self, case: &Case) -> String {
-        let mut text = format!("case {} {}", case.name, case.dataset);
+        let kind = match case.tool {
+            CaseTool::Run => "case",
+            CaseTool::Loops => "place",
+        };
+        let mut text = format!("{kind} {} {}", case.name, case.dataset);
         for arg in &case.run_args {
             text.push(' ');
             text.push_str(arg);
@@ -304,6 +366,7 @@ scene loop --scene loop --frames 40   # trailing comment
 case kitti_orb kitti06-stereo quick,standard $DATA/kitti --extractor orb
 case loop_sp loop-stereo standard synth:@loop --levels 1
 case loop_rgbd loop-rgbd standard tum:@loop/sequences/00
+place loop_place standard synth:@loop/sequences/00 --truth-depth 10
 ";
 
     fn parse(text: &str) -> Result<CaseList, CaseListError> {
@@ -317,7 +380,14 @@ case loop_rgbd loop-rgbd standard tum:@loop/sequences/00
             list.scenes["loop"].synth_args,
             ["--scene", "loop", "--frames", "40"]
         );
-        assert_eq!(list.cases.len(), 3);
+        assert_eq!(list.cases.len(), 4);
+        let place = &list.cases[3];
+        assert_eq!(
+            (place.tool, place.group.as_str(), place.scene.as_deref()),
+            (CaseTool::Loops, "place", Some("loop"))
+        );
+        assert_eq!(place.run_args, ["--truth-depth", "10"]);
+        assert!(list.definition(place).starts_with("place loop_place "));
         let c = &list.cases[0];
         assert_eq!(
             (c.group.as_str(), c.sets.clone()),
@@ -353,7 +423,7 @@ case loop_rgbd loop-rgbd standard tum:@loop/sequences/00
             names(list.select("quick", &[]).expect("quick")),
             ["kitti_orb"]
         );
-        assert_eq!(list.select("all", &[]).expect("all").len(), 3);
+        assert_eq!(list.select("all", &[]).expect("all").len(), 4);
         assert!(list.select("nightly", &[]).is_err());
         assert_eq!(
             names(list.select("quick", &["loop_sp".into()]).expect("named")),
@@ -384,6 +454,8 @@ case loop_rgbd loop-rgbd standard tum:@loop/sequences/00
             ("scene s --scene loop --out x\n", 1, "--out"),
             ("case a g q d\ncase a g q d\n", 2, "defined twice"),
             ("run a\n", 1, "not `run`"),
+            ("place a quick\n", 1, "needs NAME SETS DATASET"),
+            ("place a q d --curves x\n", 1, "must not set --curves"),
             ("case a/b g q d\n", 1, "not a valid case name"),
             ("case a g q d --out=x\n", 1, "must not set --out"),
             ("case a g q d --inline-mapping\n", 1, "--mapping-thread"),

@@ -42,6 +42,11 @@ impl SuiteLayout {
         self.run(name).join("report.json")
     }
 
+    /// One place case's curves (`spslam loops --curves`).
+    pub fn curves(&self, name: &str) -> PathBuf {
+        self.run(name).join("curves.json")
+    }
+
     /// One case's log (stdout and stderr of `spslam run`).
     pub fn log(&self, name: &str) -> PathBuf {
         self.runs().join(format!("{name}.log"))

@@ -11,7 +11,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::cases::{Case, CaseList, Scene, Substitutions};
+use super::cases::{Case, CaseList, CaseTool, Scene, Substitutions};
 use super::layout::SuiteLayout;
 use super::record::{CaseRecord, SceneRecord};
 
@@ -48,9 +48,13 @@ impl Runner<'_> {
         let Ok(record) = CaseRecord::read(&self.layout.case_record(&case.name)) else {
             return false;
         };
+        let result = match case.tool {
+            CaseTool::Run => self.layout.report(&case.name),
+            CaseTool::Loops => self.layout.curves(&case.name),
+        };
         record.exit_code == Some(0)
             && record.definition == self.list.definition(case)
-            && self.layout.report(&case.name).is_file()
+            && result.is_file()
     }
 
     /// Writes the scene unless it is there with the same arguments. The
@@ -129,8 +133,22 @@ impl Runner<'_> {
         Ok(command)
     }
 
-    /// The `spslam run` arguments of a case (after `spslam`).
+    /// The `spslam run` (or `spslam loops`) arguments of a case (after `spslam`).
     pub fn run_arguments(&self, case: &Case) -> Vec<String> {
+        if case.tool == CaseTool::Loops {
+            let mut args = vec![
+                "loops".to_string(),
+                "--dataset".into(),
+                case.resolved_dataset(&self.substitutions),
+                "--curves".into(),
+                self.layout
+                    .curves(&case.name)
+                    .to_string_lossy()
+                    .into_owned(),
+            ];
+            args.extend(case.resolved_args(&self.substitutions));
+            return args;
+        }
         let mut args = vec![
             "run".to_string(),
             "--dataset".into(),
@@ -160,6 +178,11 @@ impl Runner<'_> {
         }
         std::fs::create_dir_all(self.layout.runs())
             .with_context(|| format!("creating {}", self.layout.runs().display()))?;
+        if case.tool == CaseTool::Loops {
+            // `spslam loops` writes one file into the case's folder.
+            std::fs::create_dir_all(&run_folder)
+                .with_context(|| format!("creating {}", run_folder.display()))?;
+        }
         let log = self.layout.log(&case.name);
         let started = Instant::now();
         let status = self
@@ -217,8 +240,12 @@ impl Runner<'_> {
                     }
                     if let Ok(o) = &outcome {
                         if o.exit_code != Some(0) {
+                            let tool = match case.tool {
+                                CaseTool::Run => "run",
+                                CaseTool::Loops => "loops",
+                            };
                             bar.println(format!(
-                                "case {}: spslam run ended with {}; see {}",
+                                "case {}: spslam {tool} ended with {}; see {}",
                                 o.name,
                                 o.exit_code
                                     .map_or("a signal".to_string(), |c| format!("exit code {c}")),
