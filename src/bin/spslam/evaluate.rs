@@ -199,7 +199,12 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
     } else {
         args.only.join(",")
     };
-    let mut markdown = summary::markdown(&rows, &missing, &set_name);
+    // Only place cases chosen: no empty table of runs.
+    let mut markdown = if run_cases.is_empty() {
+        String::new()
+    } else {
+        summary::markdown(&rows, &missing, &set_name)
+    };
     markdown.push_str(&place_summary::markdown(&place_rows, &place_missing));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let summary_md = out.join("summary.md");
