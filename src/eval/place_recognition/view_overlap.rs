@@ -122,6 +122,8 @@ pub fn view_overlap(
     candidate_depth: &SceneDepth,
 ) -> f64 {
     let query_to_candidate = candidate_to_world.inverse() * query_to_world;
+    // The candidate's centre in the query's frame.
+    let candidate_centre = query_to_candidate.inverse() * Point3::origin();
     let (w, h) = (camera.width as f64, camera.height as f64);
     let mut known = 0usize;
     let mut seen = 0usize;
@@ -154,7 +156,6 @@ pub fn view_overlap(
                     .is_some_and(|dc| dc < q.z * (1.0 - OCCLUSION_TOLERANCE)),
             };
             // Distances and rays from both camera centres (query frame).
-            let candidate_centre = query_to_candidate.inverse() * Point3::origin();
             let from_query = p.coords;
             let from_candidate = p - candidate_centre;
             let ratio = from_candidate.norm() / from_query.norm();

@@ -136,17 +136,17 @@ impl FrameTruth {
     /// frame of a forward drive would "revisit" the frames behind it, which
     /// saw its view from further away: those are one pass, not a loop.
     pub fn revisits(&self, query: usize, searchable: &[usize]) -> bool {
-        let last_away = (0..query).rev().find(|&k| {
-            self.overlap(query, k)
-                .is_some_and(|o| o < DIFFERENT_PLACE_OVERLAP)
-        });
+        // Each earlier frame's overlap with the query, computed once.
+        let overlaps: Vec<Option<f64>> = (0..query).map(|k| self.overlap(query, k)).collect();
+        let last_away = overlaps
+            .iter()
+            .rposition(|o| o.is_some_and(|o| o < DIFFERENT_PLACE_OVERLAP));
         let Some(last_away) = last_away else {
             return false;
         };
         searchable.iter().any(|&j| {
             j < last_away
-                && self
-                    .overlap(query, j)
+                && overlaps[j]
                     .is_some_and(|o| CandidateTruth::from_overlap(o) == CandidateTruth::Same)
         })
     }
