@@ -89,6 +89,7 @@ fn projections_find_their_keypoints_and_agree_with_brute_force() {
         octaves_above: 0,
         ratio: Some(0.8),
         max_distance: 0.8,
+        min_rival_distance: 0.0,
     };
     let matches = search_by_projection(&points, &frame, &grid, &scales, params)
         .unwrap_or_else(|e| panic!("{e}"));
@@ -109,6 +110,7 @@ fn projections_find_their_keypoints_and_agree_with_brute_force() {
         octaves_above: 10,
         ratio: None,
         max_distance: f32::INFINITY,
+        min_rival_distance: 0.0,
     };
     let centred: Vec<ProjectedPoint> = points
         .iter()
@@ -196,6 +198,7 @@ fn projection_filters_taken_keypoints_right_columns_and_same_octave_ratio() {
         octaves_above: 1,
         ratio: Some(0.8),
         max_distance: 1.0,
+        min_rival_distance: 0.0,
     };
     let run = |filter: CandidateFilter| {
         search_by_projection_filtered(&[point], &frame, &grid, &scales, params, filter)
@@ -220,6 +223,35 @@ fn projection_filters_taken_keypoints_right_columns_and_same_octave_ratio() {
         right_u: Some(&right),
     };
     assert_eq!(run(filter), vec![2]);
+    // Descriptors sampled from a coarse map (SuperPoint's 8-px cell): a
+    // runner-up within the cell of the best is not its rival. With rivals
+    // at 2.1 px or more, 1 (2 px from 0) is passed over and 2 (2.24 px,
+    // octave 1) is the runner-up: no ratio test, 0 wins.
+    let near = ProjectionParams {
+        min_rival_distance: 2.1,
+        ..params
+    };
+    let run_near = |min: ProjectionParams| {
+        search_by_projection_filtered(
+            &[point],
+            &frame,
+            &grid,
+            &scales,
+            min,
+            CandidateFilter::default(),
+        )
+        .unwrap_or_else(|e| panic!("{e}"))
+        .iter()
+        .map(|m| m.train)
+        .collect::<Vec<_>>()
+    };
+    assert_eq!(run_near(near), vec![0]);
+    // Rivals from 1.9 px: 1 is one again, and the ratio test drops 0.
+    let far = ProjectionParams {
+        min_rival_distance: 1.9,
+        ..params
+    };
+    assert_eq!(run_near(far), Vec::<usize>::new());
 }
 
 #[test]

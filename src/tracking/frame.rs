@@ -30,6 +30,11 @@ pub struct Frame {
     pub pose_cw: Se3,
     /// The keyframe this frame's pose is stored relative to.
     pub reference_keyframe: Option<KeyFrameId>,
+    /// The cell of the lattice the descriptors were sampled from, in level
+    /// pixels (SuperPoint: 8), or `None` when each keypoint has its own
+    /// (ORB): keypoints closer than a cell share much of their descriptor
+    /// (see [`FeatureExtractor::descriptor_cell`](crate::features::FeatureExtractor::descriptor_cell)).
+    pub descriptor_cell: Option<f32>,
 }
 
 impl Frame {
@@ -72,6 +77,7 @@ impl Frame {
             map_points: vec![None; n],
             pose_cw: Se3::identity(),
             reference_keyframe: None,
+            descriptor_cell: None,
         }
     }
 
@@ -94,6 +100,8 @@ impl Frame {
             map_points: kf.map_points().to_vec(),
             pose_cw: kf.pose_cw(),
             reference_keyframe: Some(kf.id()),
+            // Loop verification searches without a ratio test.
+            descriptor_cell: None,
         }
     }
 

@@ -162,6 +162,7 @@ pub struct FrameBuilder {
     scales: ScaleTables,
     name: String,
     sensor: Sensor,
+    descriptor_cell: Option<f32>,
 }
 
 /// The extractors and the frame builder, made together from the
@@ -228,6 +229,7 @@ impl FrameBuilder {
             scales: extractor.scale_tables().clone(),
             name: extractor.name().to_string(),
             sensor: rig.sensor,
+            descriptor_cell: extractor.descriptor_cell(),
         }
     }
 
@@ -293,7 +295,7 @@ impl FrameBuilder {
                 m.filter(|m| rig.max_depth.is_none_or(|d| f64::from(m.depth) <= d))
             })
             .collect();
-        let frame = Frame::new(
+        let mut frame = Frame::new(
             index,
             timestamp,
             features.left,
@@ -301,6 +303,7 @@ impl FrameBuilder {
             self.scales.clone(),
             rig,
         );
+        frame.descriptor_cell = self.descriptor_cell;
         Ok((frame, start.elapsed().as_secs_f64() * 1e3))
     }
 }

@@ -102,6 +102,7 @@ pub(crate) fn match_projected(
             octaves_above: octaves.1,
             ratio,
             max_distance: thresholds.high,
+            min_rival_distance: frame.descriptor_cell.unwrap_or(0.0),
         },
         CandidateFilter {
             taken: Some(&taken),
