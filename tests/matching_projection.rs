@@ -200,13 +200,14 @@ fn projection_filters_taken_keypoints_right_columns_and_same_octave_ratio() {
         max_distance: 1.0,
         min_rival_distance: 0.0,
     };
-    let run = |filter: CandidateFilter| {
+    let run_with = |params: ProjectionParams, filter: CandidateFilter| {
         search_by_projection_filtered(&[point], &frame, &grid, &scales, params, filter)
             .unwrap_or_else(|e| panic!("{e}"))
             .iter()
             .map(|m| m.train)
             .collect::<Vec<_>>()
     };
+    let run = |filter: CandidateFilter| run_with(params, filter);
     // 0 and 1 share octave 0 and are too close for the ratio test.
     assert_eq!(run(CandidateFilter::default()), Vec::<usize>::new());
     // With 1 taken, the runner-up is 2 from octave 1: no ratio test, 0 wins.
@@ -231,27 +232,16 @@ fn projection_filters_taken_keypoints_right_columns_and_same_octave_ratio() {
         min_rival_distance: 2.1,
         ..params
     };
-    let run_near = |min: ProjectionParams| {
-        search_by_projection_filtered(
-            &[point],
-            &frame,
-            &grid,
-            &scales,
-            min,
-            CandidateFilter::default(),
-        )
-        .unwrap_or_else(|e| panic!("{e}"))
-        .iter()
-        .map(|m| m.train)
-        .collect::<Vec<_>>()
-    };
-    assert_eq!(run_near(near), vec![0]);
+    assert_eq!(run_with(near, CandidateFilter::default()), vec![0]);
     // Rivals from 1.9 px: 1 is one again, and the ratio test drops 0.
     let far = ProjectionParams {
         min_rival_distance: 1.9,
         ..params
     };
-    assert_eq!(run_near(far), Vec::<usize>::new());
+    assert_eq!(
+        run_with(far, CandidateFilter::default()),
+        Vec::<usize>::new()
+    );
 }
 
 #[test]
