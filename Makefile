@@ -10,7 +10,7 @@ export SPSLAM_DATA
 PYTHON := .deps/venv/bin/python
 OUT ?= out
 
-.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python lint bench header clean-deps evaluate
+.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python lint bench header clean-deps evaluate setup-train train-superpoint bench-homography
 
 all: build
 
@@ -36,6 +36,26 @@ setup-gpu: setup
 # frame rate at KITTI size; fails when CUDA is unusable or they disagree.
 gpu-check: setup-gpu
 	source .deps/gpu.env && $(CARGO) run --release --example gpu_check
+
+# The SuperPoint training recipe (tools/train/README.md): PyTorch from PyPI in
+# .deps/venv-train (about 5 GB with its CUDA wheels; never needed by `make
+# test` or `make demo`), then homographic-adaptation labels and two rounds of
+# fine-tuning on $(SPSLAM_DATA)/train_images, on the GPU when PyTorch sees one
+# (SPSLAM_TRAIN_DEVICE=cpu|cuda to choose). Resumes where it stopped.
+setup-train: setup
+	@test -x .deps/venv-train/bin/python || python3 -m venv .deps/venv-train
+	.deps/venv-train/bin/python -m pip install --disable-pip-version-check -q -r tools/train/requirements.txt
+
+train-superpoint: setup-train
+	bash tools/train/train_superpoint.sh
+
+# The homography benchmark (tools/bench_homography.py) of the shipped model
+# and MODEL (an int8 ONNX file) on IMAGES (files or folders).
+MODEL ?=
+IMAGES ?=
+bench-homography: build
+	@test -n "$(IMAGES)" || { echo "error: set IMAGES=<folder or files> (and MODEL=<int8 onnx> to compare)"; exit 1; }
+	$(PYTHON) tools/bench_homography.py --images $(IMAGES) --model shipped $(if $(MODEL),--model candidate=$(MODEL))
 
 # The C++ shim's make fragment builds against the release library.
 rust-release: build

@@ -149,10 +149,15 @@ def make_pairs(paths, n_pairs: int, seed: int, max_side: int):
     return pairs
 
 
-def extract(spslam: str, model: str, precision: str, files, out_dir: str, extra):
-    """Run `spslam extract` once over all files; return {file: (xy [N,2], desc [N,D])}."""
+def extract(spslam: str, model, precision: str, files, out_dir: str, extra, features: int = 1000):
+    """Run `spslam extract` once over all files (one level unless ``extra`` says otherwise);
+    return {file: (xy [N,2], desc [N,D])}."""
+    if "--levels" not in extra:
+        extra = ["--levels", "1", *extra]
     cmd = [spslam, "extract", *files, "--json", os.path.join(out_dir, "f.json"),
-           "--model", model, "--precision", precision, "--levels", "1", "--features", "1000", *extra]
+           "--precision", precision, "--features", str(features), *extra]
+    if model is not None:
+        cmd += ["--model", model]
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"spslam extract failed ({r.returncode}): {r.stderr.strip()[-2000:]}")
@@ -242,7 +247,8 @@ def summarise(rows):
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--images", nargs="+", required=True, help="image files or folders")
-    ap.add_argument("--model", action="append", required=True, help="NAME=PATH of an ONNX model (repeat)")
+    ap.add_argument("--model", action="append", required=True,
+                    help="NAME=PATH of an ONNX model, or NAME alone for spslam's default model of --precision (repeat)")
     ap.add_argument("--precision", default="int8", choices=["int8", "fp32"],
                     help="must match the models (int8 models are quantised graphs)")
     ap.add_argument("--pairs", type=int, default=3, help="warps per image")
@@ -254,9 +260,10 @@ def main(argv=None) -> int:
     ap.add_argument("--label", default="", help="name of the image set, for the table")
     args = ap.parse_args(argv)
     try:
-        models = [m.split("=", 1) for m in args.model]
-        if any(len(m) != 2 or not os.path.isfile(m[1]) for m in models):
-            raise FileNotFoundError("each --model must be NAME=PATH of an existing file: " + ", ".join(args.model))
+        models = [m.split("=", 1) if "=" in m else [m, None] for m in args.model]
+        missing = [m for m in models if m[1] is not None and not os.path.isfile(m[1])]
+        if missing:
+            raise FileNotFoundError("no model file at " + ", ".join(m[1] for m in missing))
         if not os.path.isfile(args.spslam):
             raise FileNotFoundError(f"spslam not built at {args.spslam} (cargo build --release)")
         paths = list_images(args.images)

