@@ -51,17 +51,20 @@ def sample_homographies(n: int, height: int, width: int, gen: torch.Generator,
     r = rng.patch_ratio
     m = (1 - r) / 2
     corners = torch.tensor([[m, m], [m, m + r], [m + r, m + r], [m + r, m]]).expand(n, 4, 2).clone()
-    # Perspective: move the top and bottom edges' ends symmetrically.
-    persp = uniform(-rng.perspective / 2, rng.perspective / 2, n) * min(r, 1 - r) * 2
-    lr = uniform(-rng.perspective / 2, rng.perspective / 2, n) * min(r, 1 - r) * 2
-    corners[:, 0, 0] += persp
-    corners[:, 1, 0] -= persp
-    corners[:, 2, 0] += persp
-    corners[:, 3, 0] -= persp
-    corners[:, 0, 1] += lr
-    corners[:, 1, 1] += lr
-    corners[:, 2, 1] -= lr
-    corners[:, 3, 1] -= lr
+    # Perspective: two keystones (SuperPoint's sample_homography): the top and bottom edges'
+    # ends move towards or away from each other in x, the left and right edges' ends in y,
+    # each by up to min(perspective / 2, margin) of the image.
+    amp = min(rng.perspective / 2, m)
+    kx = uniform(-amp, amp, n)
+    ky = uniform(-amp, amp, n)
+    corners[:, 0, 0] += kx
+    corners[:, 1, 0] -= kx
+    corners[:, 2, 0] += kx
+    corners[:, 3, 0] -= kx
+    corners[:, 0, 1] += ky
+    corners[:, 1, 1] -= ky
+    corners[:, 2, 1] += ky
+    corners[:, 3, 1] -= ky
     centre = corners.mean(dim=1, keepdim=True)
     scale = uniform(rng.scale[0], rng.scale[1], n).view(n, 1, 1)
     corners = (corners - centre) * scale + centre

@@ -113,10 +113,11 @@ def sample_map(desc: torch.Tensor, pts: torch.Tensor) -> torch.Tensor:
     return F.normalize(out[0, :, 0].T.float(), dim=1)
 
 
-def info_nce(da: torch.Tensor, db: torch.Tensor, pts: torch.Tensor, temperature: float) -> torch.Tensor:
-    """Symmetric InfoNCE; pairs closer than one cell in view A are not negatives."""
+def info_nce(da: torch.Tensor, db: torch.Tensor, pa: torch.Tensor, pb: torch.Tensor,
+             temperature: float) -> torch.Tensor:
+    """Symmetric InfoNCE; pairs closer than one cell in either view are not negatives."""
     sim = da @ db.T / temperature
-    near = torch.cdist(pts, pts) < AMBIGUOUS_RADIUS
+    near = torch.minimum(torch.cdist(pa, pa), torch.cdist(pb, pb)) < AMBIGUOUS_RADIUS
     near.fill_diagonal_(False)
     sim = sim.masked_fill(near, float("-inf"))
     target = torch.arange(len(da), device=da.device)
@@ -147,9 +148,15 @@ def make_batch(data: Dataset, step: int, args, device):
     for k in range(args.batch):
         lab_a.append(cell_labels(pts_a[k], sc_a[k], hc, wc))
         pb = warp_points(inv[k], pts_a[k]) if len(pts_a[k]) else pts_a[k]
-        inside = ((pb[:, 0] >= MARGIN) & (pb[:, 0] < w - MARGIN) &
-                  (pb[:, 1] >= MARGIN) & (pb[:, 1] < h - MARGIN)) if len(pb) else torch.zeros(0, dtype=torch.bool)
-        lb = cell_labels(pb[inside], sc_a[k][inside], hc, wc)
+        if len(pb):
+            in_image = (pb[:, 0] >= 0) & (pb[:, 0] < w) & (pb[:, 1] >= 0) & (pb[:, 1] < h)
+            inside = ((pb[:, 0] >= MARGIN) & (pb[:, 0] < w - MARGIN) &
+                      (pb[:, 1] >= MARGIN) & (pb[:, 1] < h - MARGIN))
+        else:
+            in_image = inside = torch.zeros(0, dtype=torch.bool)
+        # Every label that lands in view B labels B (a band left out would read as "no keypoint");
+        # descriptor pairs keep a margin so that both samples see image content.
+        lb = cell_labels(pb[in_image], sc_a[k][in_image], hc, wc)
         lb[~cell_valid[k]] = -100
         lab_b.append(lb)
         sel = torch.nonzero(inside).flatten()
@@ -168,6 +175,20 @@ def lr_at(step: int, args) -> float:
         return args.lr * (step + 1) / args.warmup
     t = (step - args.warmup) / max(1, args.steps - args.warmup)
     return args.lr * (0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(1.0, t))))
+
+
+def truncate_log(path: str, step: int) -> None:
+    """Keep loss.csv's rows up to ``step`` (the checkpoint's): a resumed run writes the later ones again."""
+    if not os.path.exists(path):
+        return
+    if step == 0:
+        os.remove(path)
+        return
+    with open(path) as f:
+        rows = f.read().splitlines()
+    kept = rows[:1] + [r for r in rows[1:] if r.split(",", 1)[0].isdigit() and int(r.split(",", 1)[0]) <= step]
+    with open(path, "w") as f:
+        f.write("\n".join(kept) + "\n")
 
 
 def save_checkpoint(path: str, net, opt, step: int, args) -> None:
@@ -225,6 +246,7 @@ def main(argv=None) -> int:
     net.train()
     net.freeze_batchnorm_statistics()
     log_path = os.path.join(args.out, "loss.csv")
+    truncate_log(log_path, step)
     new_log = not os.path.exists(log_path)
     log = open(log_path, "a", newline="")
     writer = csv.writer(log)
@@ -265,7 +287,7 @@ def main(argv=None) -> int:
                 continue
             da = sample_map(desc[k].float(), pa)
             db = sample_map(desc[k + args.batch].float(), pb)
-            desc_losses.append(info_nce(da, db, pa, args.temperature))
+            desc_losses.append(info_nce(da, db, pa, pb, args.temperature))
             with torch.no_grad():
                 accs.append((torch.argmax(da @ db.T, dim=1) == torch.arange(len(da), device=device)).float().mean())
         dl = torch.stack(desc_losses).mean() if desc_losses else torch.zeros((), device=device)
