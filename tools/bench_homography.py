@@ -52,6 +52,7 @@ class Pair:
     """One benchmark pair: the source image, its warp and the true homography (warped -> source)."""
 
     name: str
+    source_index: int
     source: np.ndarray
     warped: np.ndarray
     h: np.ndarray
@@ -145,7 +146,7 @@ def make_pairs(paths, n_pairs: int, seed: int, max_side: int):
         for k in range(n_pairs):
             rng = np.random.default_rng([seed, i, k])
             hm = random_homography(rng, img.shape[1], img.shape[0])
-            pairs.append(Pair(f"{os.path.basename(p)}#{k}", img, photometric(warp_image(img, hm), rng), hm))
+            pairs.append(Pair(f"{os.path.basename(p)}#{k}", i, img, photometric(warp_image(img, hm), rng), hm))
     return pairs
 
 
@@ -274,12 +275,15 @@ def main(argv=None) -> int:
     extra = ["--no-periodic-filter"] if args.no_periodic_filter else []
     results = {}
     with tempfile.TemporaryDirectory() as tmp:
-        files = []
-        for i, p in enumerate(pairs):
-            for tag, img in (("a", p.source), ("b", p.warped)):
-                f = os.path.join(tmp, f"{i:04d}{tag}.png")
-                Image.fromarray(np.round(img * 255).astype(np.uint8)).save(f)
-                files.append(f)
+        def save(img, f):
+            Image.fromarray(np.round(img * 255).astype(np.uint8)).save(f)
+            return f
+
+        # Each source image is extracted once, however many warps it has.
+        sources = {p.source_index: p.source for p in pairs}
+        source_files = {i: save(img, os.path.join(tmp, f"src{i:04d}.png")) for i, img in sources.items()}
+        warped_files = [save(p.warped, os.path.join(tmp, f"warp{i:04d}.png")) for i, p in enumerate(pairs)]
+        files = list(source_files.values()) + warped_files
         for name, path in models:
             out = os.path.join(tmp, "out_" + name)
             os.makedirs(out)
@@ -288,7 +292,7 @@ def main(argv=None) -> int:
             except RuntimeError as e:
                 print(f"bench_homography: error: model {name}: {e}", file=sys.stderr)
                 return 1
-            rows = [score_pair(p, feats[files[2 * i]], feats[files[2 * i + 1]], args.seed + i)
+            rows = [score_pair(p, feats[source_files[p.source_index]], feats[warped_files[i]], args.seed + i)
                     for i, p in enumerate(pairs)]
             results[name] = {"summary": summarise(rows), "pairs": rows}
     label = args.label or ", ".join(args.images)

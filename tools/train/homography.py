@@ -88,7 +88,7 @@ def sample_homographies(n: int, height: int, width: int, gen: torch.Generator,
 def warp_points(h: torch.Tensor, pts: torch.Tensor) -> torch.Tensor:
     """Apply ``h`` [3,3] to points [N,2] (x, y)."""
     ph = torch.cat([pts, torch.ones_like(pts[:, :1])], dim=1) @ h.T
-    return ph[:, :2] / ph[:, 2:3].clamp(min=1e-9) * torch.sign(ph[:, 2:3])
+    return ph[:, :2] / ph[:, 2:3]
 
 
 def warp_images(images: torch.Tensor, h: torch.Tensor, out_hw=None):

@@ -264,10 +264,10 @@ def main(argv=None) -> int:
         if not args.time_budget:
             raise SystemExit("train: --steps 0 needs --time-budget")
         args.steps = 1 << 30
-    measured_from = (step, t0)
+    first_step = step
     while step < args.steps:
-        if auto_steps and step - measured_from[0] == 30:
-            rate = (time.time() - measured_from[1]) / 30
+        if auto_steps and step - first_step == 30:
+            rate = (time.time() - t0) / 30
             args.steps = step + int((args.time_budget - (time.time() - t0)) / rate * 0.95)
             if bar is not None:
                 bar.total = args.steps
