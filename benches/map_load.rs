@@ -49,6 +49,7 @@ fn measurements(rng: &mut SeededRng) -> FrameMeasurements {
             })
             .collect(),
         scales: ScaleTables::new(KEYPOINTS, 1.2, 1),
+        distance_thresholds: spslam::features::DistanceThresholds::SUPERPOINT_L2,
     }
 }
 

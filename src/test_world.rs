@@ -135,6 +135,9 @@ impl PointWorld {
             descriptors: view.descriptors.clone(),
             stereo: view.stereo.clone(),
             scales: ScaleTables::new(1000, 1.2, 8),
+            distance_thresholds: crate::features::DistanceThresholds::for_kind(
+                view.descriptors.kind(),
+            ),
         };
         let index = map.keyframe_count();
         let kf = map

@@ -224,7 +224,7 @@ fn strict_stops_at_the_corrupt_frame_and_writes_the_frames_before() {
         String::from_utf8_lossy(&info.stderr)
     );
     assert!(
-        info_text.contains("format version 2")
+        info_text.contains("format version 3")
             && info_text.contains("extractor orb")
             && info_text.contains("camera: stereo"),
         "{info_text}"

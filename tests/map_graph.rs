@@ -48,6 +48,7 @@ fn measurements(n: usize, kf: usize, octave: i32, stereo: bool) -> FrameMeasurem
             })
             .collect(),
         scales: ScaleTables::new(1000, 1.2, 8),
+        distance_thresholds: spslam::features::DistanceThresholds::SUPERPOINT_L2,
     }
 }
 

@@ -88,6 +88,28 @@ fn spslam_keys_and_defaults() {
         path.parent().map(|d| d.join("models/sp.onnx")).as_deref(),
         "relative model paths are taken beside the settings file"
     );
+    let named = SlamSettings::from_file(write(
+        "named.yaml",
+        &text.replace("\"models/sp.onnx\"", "\"photo\""),
+    ))
+    .expect("a named model");
+    assert_eq!(
+        named.extractor.model.as_deref(),
+        Some(std::path::Path::new("photo")),
+        "a model's name stays a name"
+    );
+    assert!(
+        named
+            .extractor
+            .superpoint_config(1, 1)
+            .resolved_model_path()
+            .ends_with("models/superpoint_photo_int8.onnx")
+            || named
+                .extractor
+                .superpoint_config(1, 1)
+                .resolved_model_path()
+                .ends_with("models/superpoint_photo_int8_avx2.onnx")
+    );
     assert_eq!(s.max_depth, Some(20.0));
     assert_eq!(s.depth_map_factor, Some(5000.0));
     assert_eq!(s.camera.baseline, None, "no baseline: not stereo");

@@ -237,7 +237,8 @@ def fold_through_relu(net: ex.Network) -> ex.Network:
         if rest is not None:
             raise ValueError(f"{tag}: head ends in an affine after a ReLU; cannot fold it")
         heads.append(layers)
-    return ex.Network(backbone=backbone, detector=heads[0], descriptor=heads[1], layout=net.layout)
+    return ex.Network(backbone=backbone, detector=heads[0], descriptor=heads[1], layout=net.layout,
+                      provenance_override=dict(net.provenance_override))
 
 
 def border_band_cells(net: ex.Network) -> int:

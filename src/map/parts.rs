@@ -19,7 +19,7 @@ use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::features::pyramid::ScaleTables;
-use crate::features::{DescriptorSet, Keypoint};
+use crate::features::{DescriptorSet, DistanceThresholds, Keypoint};
 use crate::optim::Se3;
 
 use super::counter::Counter;
@@ -96,6 +96,8 @@ pub struct KeyFrameParts {
     pub stereo: Vec<Option<(f32, f32)>>,
     /// Per-level tables.
     pub scales: ScaleParts,
+    /// The descriptor-distance thresholds it was matched with.
+    pub distance_thresholds: DistanceThresholds,
     /// The point each keypoint observes.
     pub slots: Vec<Option<MapPointId>>,
     /// Its graph node (`None` for a keyframe with none).
@@ -202,6 +204,7 @@ impl Map {
                         inv_level_sigma2: m.scales.inv_level_sigma2.clone(),
                         features_per_level: m.scales.features_per_level.clone(),
                     },
+                    distance_thresholds: m.distance_thresholds,
                     slots: kf.map_points().to_vec(),
                     graph: self.covisibility.get(&kf.id()).map(|n| GraphParts {
                         weights: n.weights.iter().map(|(k, w)| (*k, *w)).collect(),
@@ -293,6 +296,7 @@ impl Map {
                     inv_level_sigma2: kf.scales.inv_level_sigma2,
                     features_per_level: kf.scales.features_per_level,
                 },
+                distance_thresholds: kf.distance_thresholds,
             };
             let mut keyframe = KeyFrame::new(
                 kf.id,

@@ -37,6 +37,7 @@ pub(crate) fn measurements(n: usize) -> FrameMeasurements {
             })
             .collect(),
         scales: ScaleTables::new(1000, 1.2, 8),
+        distance_thresholds: crate::features::DistanceThresholds::SUPERPOINT_L2,
     }
 }
 

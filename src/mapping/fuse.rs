@@ -6,7 +6,7 @@ use std::collections::BTreeSet;
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
-use crate::matching::{DistanceThresholds, KeypointGrid};
+use crate::matching::KeypointGrid;
 use crate::optim::reprojection::{CHI2_MONO_95, CHI2_STEREO_95};
 use crate::optim::LieGroup;
 
@@ -42,7 +42,7 @@ fn fuse_candidate(
     let scale_factor = f64::from(scales.scale_factors.get(1).copied().unwrap_or(1.2));
     let octave = p.predict_octave(distance, scale_factor, scales.n_levels());
     let radius = FUSE_RADIUS * scales.scale_factors.get(octave).copied().unwrap_or(1.0);
-    let threshold = DistanceThresholds::for_kind(kf.measurements.descriptors.kind()).low;
+    let threshold = kf.measurements.distance_thresholds.low;
     let mut best: Option<(usize, f32)> = None;
     let octave = octave as i32;
     for i in grid.features_in_area(

@@ -8,7 +8,7 @@ use crate::camera::{CameraRig, Sensor};
 use crate::error::{MapContext, SlamError};
 use crate::features::DescriptorSet;
 use crate::map::{FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor};
-use crate::matching::{BestTwo, DistanceThresholds};
+use crate::matching::BestTwo;
 use crate::optim::lie::hat;
 use crate::optim::reprojection::{CHI2_MONO_95, CHI2_STEREO_95};
 use crate::optim::{LieGroup, Se3};
@@ -92,7 +92,7 @@ fn epipolar_matches(v1: &View, v2: &View, rig: &CameraRig) -> Vec<(usize, usize)
     let f21 = fundamental(v1, v2, rig);
     let d1 = &v1.measurements.descriptors;
     let d2: &DescriptorSet = &v2.measurements.descriptors;
-    let threshold = DistanceThresholds::for_kind(d1.kind()).low;
+    let threshold = v1.measurements.distance_thresholds.low;
     // v2's candidates as flat rows (the inner loop runs n1 × n2 times).
     struct Candidate {
         u: f64,

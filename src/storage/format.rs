@@ -1,9 +1,10 @@
-//! The map file format, version 2 (version 1 had no sensor in the rig).
+//! The map file format, version 3 (version 1 had no sensor in the rig;
+//! version 2 no descriptor-distance thresholds per keyframe).
 //!
 //! ```text
 //! offset  size  field
 //! 0       8     magic "SPSLMAP\x1a"
-//! 8       4     format version, u32 little-endian (2)
+//! 8       4     format version, u32 little-endian (3)
 //! 12      8     payload length in bytes, u64 little-endian
 //! 20      4     CRC-32 (IEEE) of the payload, u32 little-endian
 //! 24      …     payload: a `StoredAtlas`, postcard-encoded
@@ -44,7 +45,7 @@ use super::error::StorageError;
 /// The first 8 bytes of every map file.
 pub const MAGIC: [u8; 8] = *b"SPSLMAP\x1a";
 /// The format version this build writes and reads.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 /// Header bytes before the payload.
 pub const HEADER_LEN: usize = 24;
 

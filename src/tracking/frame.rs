@@ -2,7 +2,7 @@
 //! map points its keypoints are matched to, and its pose.
 
 use crate::features::pyramid::{level_to_base_offset, ScaleTables};
-use crate::features::FrameFeatures;
+use crate::features::{DistanceThresholds, FrameFeatures};
 use crate::map::{FrameMeasurements, KeyFrame, KeyFrameId, MapPointId, StereoMeasurement};
 use crate::matching::KeypointGrid;
 use crate::optim::{LieGroup, Se3};
@@ -35,6 +35,9 @@ pub struct Frame {
     /// (ORB): keypoints closer than a cell share much of their descriptor
     /// (see [`FeatureExtractor::descriptor_cell`](crate::features::FeatureExtractor::descriptor_cell)).
     pub descriptor_cell: Option<f32>,
+    /// The thresholds its descriptors are matched with (the extractor's;
+    /// the kind's default until the front end sets them).
+    pub distance_thresholds: DistanceThresholds,
 }
 
 impl Frame {
@@ -67,6 +70,7 @@ impl Frame {
         }
         let grid = KeypointGrid::new(&features.keypoints, rig.width, rig.height);
         let n = features.len();
+        let distance_thresholds = DistanceThresholds::for_kind(features.descriptors.kind());
         Self {
             index,
             timestamp,
@@ -78,6 +82,7 @@ impl Frame {
             pose_cw: Se3::identity(),
             reference_keyframe: None,
             descriptor_cell: None,
+            distance_thresholds,
         }
     }
 
@@ -102,6 +107,7 @@ impl Frame {
             reference_keyframe: Some(kf.id()),
             // Loop verification searches without a ratio test.
             descriptor_cell: None,
+            distance_thresholds: m.distance_thresholds,
         }
     }
 
@@ -155,6 +161,7 @@ impl Frame {
             descriptors: self.features.descriptors.clone(),
             stereo: self.stereo.clone(),
             scales: self.scales.clone(),
+            distance_thresholds: self.distance_thresholds,
         }
     }
 }

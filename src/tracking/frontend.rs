@@ -163,6 +163,7 @@ pub struct FrameBuilder {
     name: String,
     sensor: Sensor,
     descriptor_cell: Option<f32>,
+    distance_thresholds: DistanceThresholds,
 }
 
 /// The extractors and the frame builder, made together from the
@@ -216,7 +217,7 @@ impl Frontend {
 
 impl FrameBuilder {
     fn new(extractor: &dyn FeatureExtractor, rig: &CameraRig) -> Self {
-        let thresholds = DistanceThresholds::for_kind(extractor.descriptor_kind());
+        let thresholds = extractor.distance_thresholds();
         let periodic = extractor.descriptor_cell().map(PeriodicGuard::for_cell);
         let stereo = StereoParams::new(
             rig.camera.bf as f32,
@@ -230,6 +231,7 @@ impl FrameBuilder {
             name: extractor.name().to_string(),
             sensor: rig.sensor,
             descriptor_cell: extractor.descriptor_cell(),
+            distance_thresholds: thresholds,
         }
     }
 
@@ -304,6 +306,7 @@ impl FrameBuilder {
             rig,
         );
         frame.descriptor_cell = self.descriptor_cell;
+        frame.distance_thresholds = self.distance_thresholds;
         Ok((frame, start.elapsed().as_secs_f64() * 1e3))
     }
 }

@@ -10,7 +10,7 @@ use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::geometry::two_view::{reconstruct_two_views, TwoViewParams, TwoViewReconstruction};
 use crate::map::{KeyFrameId, Map, MapPointId, PointDescriptor};
-use crate::matching::{match_temporal, DistanceThresholds, Match, TemporalParams};
+use crate::matching::{match_temporal, Match, TemporalParams};
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
@@ -64,7 +64,7 @@ impl MonoInitialiser {
             self.reference = None;
             return Ok(None);
         }
-        let thresholds = DistanceThresholds::for_kind(frame.features.descriptors.kind());
+        let thresholds = frame.distance_thresholds;
         let params = TemporalParams {
             window: 100.0,
             octave_tolerance: 0,

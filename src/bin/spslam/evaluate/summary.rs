@@ -115,18 +115,29 @@ pub fn collect(
     (rows, missing)
 }
 
-/// The extractor as the tables name it.
+/// The extractor as the tables name it, with the SuperPoint model when the
+/// run named one (`SuperPoint + ANMS (photo)`).
 fn extractor_label(report: &Value) -> String {
     // `orb`, `superpoint` or `superpoint+anms-<method>`.
     let extractor = report["extractor"].as_str().unwrap_or("?");
-    if extractor == "orb" {
-        "ORB".into()
+    let base = if extractor == "orb" {
+        return "ORB".into();
     } else if extractor.starts_with("superpoint+anms") {
-        "SuperPoint + ANMS".into()
+        "SuperPoint + ANMS"
     } else if extractor.starts_with("superpoint") {
-        "SuperPoint".into()
+        "SuperPoint"
     } else {
-        extractor.into()
+        return extractor.into();
+    };
+    // `SuperPoint.model`: a name (`photo`) or a file, named by its file name.
+    match report["settings"]["extractor"]["model"].as_str() {
+        Some(model) => {
+            let name = std::path::Path::new(model)
+                .file_name()
+                .map_or_else(|| model.to_string(), |n| n.to_string_lossy().into_owned());
+            format!("{base} ({name})")
+        }
+        None => base.into(),
     }
 }
 

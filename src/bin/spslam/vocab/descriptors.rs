@@ -95,6 +95,9 @@ pub fn extractor(args: &TrainArgs) -> Result<Box<dyn FeatureExtractor>> {
         },
     };
     config.device = args.device;
+    if let Some(model) = &args.model {
+        config.model_path = Some(model.clone());
+    }
     Ok(Box::new(
         SuperPointExtractor::new(config).context("cannot create the SuperPoint extractor")?,
     ))
@@ -116,6 +119,9 @@ pub fn run_superpoint_config(args: &TrainArgs) -> Result<ExtractorConfig> {
     }
     if let Some(p) = args.precision {
         e.precision = p;
+    }
+    if let Some(model) = &args.model {
+        e.model = Some(model.clone());
     }
     e.device = args.device;
     let levels = args.pyramid_levels.unwrap_or(e.superpoint_levels);

