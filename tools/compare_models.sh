@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Compare a candidate SuperPoint state dict with the shipped model on this CPU, as markdown:
 # the homography benchmark (held-out photographs from scikit-image's data, and the shared
-# excerpts' frames), the stereo same-row fraction on KITTI 06, and the periodic artefact on
+# excerpts' frames), the stereo same-row fraction on KITTI 06 and rectified EuRoC, and the periodic artefact on
 # flat dark noise without the filter. Writes the report to stdout.
 #
 #   bash tools/compare_models.sh models/superpoint_photo.pth > report.md
@@ -42,6 +42,10 @@ $PY tools/bench_homography.py --images "$FR" --pairs 2 --max-side 1280 --model s
     --label "the shared excerpts' frames (KITTI 06 x6, KITTI 07 x8, EuRoC V1_01 x10, 7-Scenes kitchen x10)"
 $PY tools/stereo_same_row.py --left "$DATA/kitti/sequences/06/image_0" --right "$DATA/kitti/sequences/06/image_1" \
     --every 5 --model shipped --model candidate="$TMP/cand_int8.onnx" --label "KITTI 06 excerpt"
+cargo run --release --quiet --example rectify_euroc -- "$DATA/euroc/V1_01_easy_first95" "$TMP/euroc_rect" 5 >&2
+$PY tools/stereo_same_row.py --left "$TMP/euroc_rect/left" --right "$TMP/euroc_rect/right" \
+    --every 1 --model shipped --model candidate="$TMP/cand_int8.onnx" \
+    --label "EuRoC V1_01 excerpt, every 5th pair, rectified as spslam run does (examples/rectify_euroc)"
 echo
 echo "Periodic artefact: flat dark noise (640x480, mean 8-20, sd 1.5-3), 1000 keypoints, filter off: share on the most common sub-cell phase (uniform: 1.6 %)"
 echo

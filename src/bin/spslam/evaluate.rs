@@ -56,7 +56,9 @@ pub struct EvaluateArgs {
     #[arg(long)]
     no_summary: bool,
     /// Replace the block between `<!-- spslam evaluate: begin -->` and
-    /// `<!-- spslam evaluate: end -->` in this markdown file with the summary.
+    /// `<!-- spslam evaluate: end -->` in this markdown file with the summary
+    /// (for a set other than standard: `<!-- spslam evaluate SET: begin -->`
+    /// and `... end -->`).
     #[arg(long, value_name = "FILE")]
     update_doc: Option<PathBuf>,
     /// The shared data folder `$DATA` stands for [default: SPSLAM_DATA,
@@ -237,12 +239,11 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
     if let Some(doc) = &args.update_doc {
         let text =
             std::fs::read_to_string(doc).with_context(|| format!("reading {}", doc.display()))?;
-        let Some(updated) = summary::replace_block(&text, &markdown) else {
+        let (begin, end) = summary::markers(&args.set);
+        let Some(updated) = summary::replace_block_between(&text, &markdown, &begin, &end) else {
             bail!(
-                "{} has no block to replace: put the lines `{}` and `{}` where the summary goes",
+                "{} has no block to replace: put the lines `{begin}` and `{end}` where the summary goes",
                 doc.display(),
-                summary::BEGIN_MARKER,
-                summary::END_MARKER
             );
         };
         std::fs::write(doc, updated).with_context(|| format!("writing {}", doc.display()))?;

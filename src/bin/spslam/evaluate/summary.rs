@@ -373,15 +373,35 @@ fn group_order(rows: &[RunRow]) -> Vec<String> {
     groups
 }
 
-/// The markers of the generated block in a document.
+/// The markers of the standard set's generated block in a document.
 pub const BEGIN_MARKER: &str = "<!-- spslam evaluate: begin -->";
 /// See [`BEGIN_MARKER`].
 pub const END_MARKER: &str = "<!-- spslam evaluate: end -->";
 
-/// `document` with the lines between the marker lines replaced by
-/// `block`, or None when the markers are not on lines of their own, in
-/// order.
-pub fn replace_block(document: &str, block: &str) -> Option<String> {
+/// The begin and end markers of a set's generated block: [`BEGIN_MARKER`]
+/// and [`END_MARKER`] for the standard set, `<!-- spslam evaluate SET:
+/// begin -->` and `... end -->` for another, so that one document can hold
+/// several sets' summaries.
+pub fn markers(set: &str) -> (String, String) {
+    if set == "standard" {
+        (BEGIN_MARKER.into(), END_MARKER.into())
+    } else {
+        (
+            format!("<!-- spslam evaluate {set}: begin -->"),
+            format!("<!-- spslam evaluate {set}: end -->"),
+        )
+    }
+}
+
+/// `document` with the lines between the `begin` and `end` marker lines
+/// replaced by `block`, or None when the markers are not on lines of their
+/// own, in order.
+pub fn replace_block_between(
+    document: &str,
+    block: &str,
+    begin: &str,
+    end: &str,
+) -> Option<String> {
     let line_at = |marker: &str, from: usize| {
         let mut offset = from;
         document[from..].split_inclusive('\n').find_map(|line| {
@@ -390,8 +410,8 @@ pub fn replace_block(document: &str, block: &str) -> Option<String> {
             (line.trim_end() == marker).then_some((start, offset))
         })
     };
-    let (_, after_begin) = line_at(BEGIN_MARKER, 0)?;
-    let (end, _) = line_at(END_MARKER, after_begin)?;
+    let (_, after_begin) = line_at(begin, 0)?;
+    let (end, _) = line_at(end, after_begin)?;
     Some(format!(
         "{}{}{}",
         &document[..after_begin],
@@ -403,6 +423,25 @@ pub fn replace_block(document: &str, block: &str) -> Option<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn replace_block(document: &str, block: &str) -> Option<String> {
+        replace_block_between(document, block, BEGIN_MARKER, END_MARKER)
+    }
+
+    #[test]
+    fn each_set_has_its_own_markers() {
+        assert_eq!(
+            markers("standard"),
+            (BEGIN_MARKER.into(), END_MARKER.into())
+        );
+        let (begin, end) = markers("models");
+        let doc = format!("{BEGIN_MARKER}\nkept\n{END_MARKER}\n{begin}\nold\n{end}\n");
+        let new = replace_block_between(&doc, "new\n", &begin, &end).expect("markers");
+        assert_eq!(
+            new,
+            format!("{BEGIN_MARKER}\nkept\n{END_MARKER}\n{begin}\nnew\n{end}\n")
+        );
+    }
 
     fn row(extractor: &str, tracked: u64, ate: f64) -> RunRow {
         RunRow {
