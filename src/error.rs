@@ -180,3 +180,9 @@ impl<T> MapContext<T> for Result<T, opencv::Error> {
         self.map_err(|source| SlamError::OpenCv { stage, source })
     }
 }
+
+impl From<crate::camera::InvalidCamera> for SlamError {
+    fn from(e: crate::camera::InvalidCamera) -> Self {
+        SlamError::InvalidCamera { reason: e.reason }
+    }
+}

@@ -8,5 +8,5 @@ mod rig;
 mod sensor;
 
 pub use depth::{DepthError, DepthImage};
-pub use rig::{CameraRig, DEFAULT_RGBD_BASELINE};
+pub use rig::{CameraRig, InvalidCamera, DEFAULT_RGBD_BASELINE};
 pub use sensor::{Sensor, UnknownSensor};

@@ -6,7 +6,6 @@ use nalgebra::Vector3;
 use super::Sensor;
 use crate::geometry::two_view::PinholeIntrinsics;
 
-use crate::error::SlamError;
 use crate::optim::reprojection::PinholeStereo;
 use crate::settings::SlamSettings;
 
@@ -37,6 +36,15 @@ pub struct CameraRig {
     pub fps: f64,
 }
 
+/// Camera settings that cannot drive the SLAM system (the system reports it
+/// as `SlamError::InvalidCamera`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("invalid camera for stereo SLAM: {reason}")]
+pub struct InvalidCamera {
+    /// What is wrong.
+    pub reason: String,
+}
+
 impl CameraRig {
     /// The stereo rig described by `settings` for images of `width` x
     /// `height` (see [`Self::for_sensor`]).
@@ -44,7 +52,7 @@ impl CameraRig {
         settings: &SlamSettings,
         width: usize,
         height: usize,
-    ) -> Result<Self, SlamError> {
+    ) -> Result<Self, InvalidCamera> {
         Self::for_sensor(settings, Sensor::Stereo, width, height)
     }
 
@@ -58,11 +66,11 @@ impl CameraRig {
         sensor: Sensor,
         width: usize,
         height: usize,
-    ) -> Result<Self, SlamError> {
+    ) -> Result<Self, InvalidCamera> {
         let c = &settings.camera;
         let baseline = match sensor {
             Sensor::Monocular => 0.0,
-            Sensor::Stereo => c.baseline.ok_or_else(|| SlamError::InvalidCamera {
+            Sensor::Stereo => c.baseline.ok_or_else(|| InvalidCamera {
                 reason: "the settings have no stereo baseline (Stereo.b or Camera.bf); \
                          use --sensor mono or rgbd for a single camera"
                     .into(),
@@ -72,7 +80,7 @@ impl CameraRig {
         let camera = PinholeStereo::new(c.fx, c.fy, c.cx, c.cy, baseline * c.fx);
         let baseline_ok = baseline.is_finite() && (baseline > 0.0 || sensor == Sensor::Monocular);
         if !camera.is_valid() || !baseline_ok || width == 0 || height == 0 {
-            return Err(SlamError::InvalidCamera {
+            return Err(InvalidCamera {
                 reason: format!(
                     "{sensor}: fx {}, fy {}, cx {}, cy {}, baseline {baseline}, image {width}x{height}",
                     c.fx, c.fy, c.cx, c.cy

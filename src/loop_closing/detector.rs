@@ -29,7 +29,9 @@ use crate::optim::Se3;
 use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 
 use super::thresholds::LoopThresholds;
-use super::verify::{check_candidate, confirm_with, CheckedCandidate, LoopStage};
+use super::verify::{
+    check_candidate, confirm_with, CheckedCandidate, LoopStage, RejectedCandidate,
+};
 
 /// A loop the detector accepted: the query keyframe's pose in the loop's
 /// frame and its matches with the loop group.
@@ -49,21 +51,6 @@ pub struct AcceptedLoop {
     pub inliers: usize,
     /// Keyframes that agreed, the detecting one included.
     pub confirmations: usize,
-}
-
-/// A candidate that passed the descriptor stage and failed later.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct RejectedCandidate {
-    /// The keyframe that looked for a loop.
-    pub query: KeyFrameId,
-    /// The candidate.
-    pub candidate: KeyFrameId,
-    /// Its cosine similarity with the query.
-    pub score: f32,
-    /// Where it failed.
-    pub stage: LoopStage,
-    /// The count reached at that stage (matches, inliers or confirmations).
-    pub count: usize,
 }
 
 /// What one keyframe's detection found.

@@ -23,8 +23,9 @@ use crate::map::{KeyFrameId, Map};
 use crate::optim::{LieGroup, Se3};
 use crate::place::{KeyframeDatabase, QueryOptions};
 
-use super::detector::{AcceptedLoop, RejectedCandidate};
+use super::detector::AcceptedLoop;
 use super::thresholds::LoopThresholds;
+use super::verify::RejectedCandidate;
 use super::verify::{check_candidate, CheckedCandidate};
 
 /// A merge the detector accepted.

@@ -32,9 +32,7 @@ mod thresholds;
 mod verify;
 
 pub use correct::{correct_loop, pose_difference, LoopCorrection};
-pub use detector::{
-    AcceptedLoop, DetectionOutcome, LoopDetector, RejectedCandidate, SharedKeyframeDatabase,
-};
+pub use detector::{AcceptedLoop, DetectionOutcome, LoopDetector, SharedKeyframeDatabase};
 pub use essential_graph::{
     build_essential_graph, optimise_essential_graph, EssentialGraph, EssentialGraphInput,
     EssentialGraphOutcome, GraphPose, MIN_ESSENTIAL_WEIGHT,
@@ -48,5 +46,5 @@ pub use relocalisation::{DatabaseRelocaliser, RELOCALISATION_CANDIDATES};
 pub use thresholds::LoopThresholds;
 pub use verify::{
     confirm_across, confirm_with, verify_across, verify_candidate, Confirmation, LoopStage,
-    Verification, VerifiedLoop,
+    RejectedCandidate, Verification, VerifiedLoop,
 };

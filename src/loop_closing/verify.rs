@@ -15,7 +15,6 @@ use crate::tracking::{
     VisiblePoint,
 };
 
-use super::detector::RejectedCandidate;
 use super::thresholds::LoopThresholds;
 
 /// The stage at which a candidate failed.
@@ -34,6 +33,21 @@ pub enum LoopStage {
     Reprojection,
     /// Verified, but not confirmed by enough keyframes.
     Confirmation,
+}
+
+/// A candidate that passed the descriptor stage and failed later.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RejectedCandidate {
+    /// The keyframe that looked for a loop.
+    pub query: KeyFrameId,
+    /// The candidate.
+    pub candidate: KeyFrameId,
+    /// Its cosine similarity with the query.
+    pub score: f32,
+    /// Where it failed.
+    pub stage: LoopStage,
+    /// The count reached at that stage (matches, inliers or confirmations).
+    pub count: usize,
 }
 
 /// A candidate that passed every geometric stage.

@@ -10,9 +10,9 @@ pub mod images;
 mod train;
 mod vlad;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use spslam::features::{Device, Precision};
 
 /// The arguments of `spslam vocab`.
@@ -113,4 +113,18 @@ pub fn run_vocab(args: VocabArgs) -> Result<()> {
     match args.command {
         VocabCommand::Train(args) => train::run_train(args),
     }
+}
+
+/// Checks that `--out`'s folder exists.
+pub fn check_out_dir(out: &Path) -> Result<()> {
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if !dir.is_dir() {
+            bail!(
+                "the output folder {} does not exist (for --out {})",
+                dir.display(),
+                out.display()
+            );
+        }
+    }
+    Ok(())
 }

@@ -59,6 +59,7 @@
 //! regular and the scale drifts only as far as the data allow. Points seen
 //! only by fixed poses are still optimised.
 
+mod blocks;
 mod chunk;
 mod config;
 mod layout;

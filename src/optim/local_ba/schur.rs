@@ -9,7 +9,8 @@ use nalgebra::{DMatrix, Matrix3, Matrix6x3};
 
 use crate::optim::damping::marquardt_scale;
 
-use super::chunk::{outer_product, PassInputs, PointChunk, ReducedPart, ScaledBlock};
+use super::blocks::{outer_product, ScaledBlock};
+use super::chunk::{PassInputs, PointChunk, ReducedPart};
 use super::layout::FIXED_POSE;
 
 impl PointChunk {

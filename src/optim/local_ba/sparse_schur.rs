@@ -21,7 +21,7 @@
 
 use nalgebra::{DVector, Matrix6, Matrix6x3, Vector6};
 
-use super::chunk::{outer_product, ScaledBlock};
+use super::blocks::{outer_product, ScaledBlock};
 use super::layout::{Layout, FIXED_POSE};
 use crate::optim::damping::marquardt_scale;
 use crate::optim::sparse::{add_diagonal_block, BlockPattern, BlockSlot, SparseCholesky};

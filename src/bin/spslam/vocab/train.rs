@@ -13,7 +13,7 @@ use spslam::place::{
 
 use super::descriptors::{extract_all, extractor, TrainingRows};
 use super::images::{list_images, subsample};
-use super::{TrainArgs, VocabFormat};
+use super::{check_out_dir, TrainArgs, VocabFormat};
 
 /// dbow2's branching factor without `--k`.
 const DEFAULT_DBOW2_K: usize = 10;
@@ -27,20 +27,6 @@ struct Trained {
     bytes: u64,
     cluster_s: f64,
     write_s: f64,
-}
-
-/// Checks that `--out`'s folder exists.
-pub fn check_out_dir(out: &Path) -> Result<()> {
-    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if !dir.is_dir() {
-            bail!(
-                "the output folder {} does not exist (for --out {})",
-                dir.display(),
-                out.display()
-            );
-        }
-    }
-    Ok(())
 }
 
 /// Runs `spslam vocab train`.

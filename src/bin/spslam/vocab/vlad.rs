@@ -16,8 +16,7 @@ use spslam::place::{
 
 use super::descriptors::{extract_all, run_superpoint_config, TrainingRows};
 use super::images::{list_images, subsample};
-use super::train::check_out_dir;
-use super::{DescriptorChoice, TrainArgs};
+use super::{check_out_dir, DescriptorChoice, TrainArgs};
 
 /// The `eps` of the whitening's `1 / sqrt(λ + eps)`: small against the
 /// eigenvalues of unit-norm VLADs (the largest are around 1e-2).
