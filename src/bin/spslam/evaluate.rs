@@ -57,8 +57,8 @@ pub struct EvaluateArgs {
     no_summary: bool,
     /// Replace the block between `<!-- spslam evaluate: begin -->` and
     /// `<!-- spslam evaluate: end -->` in this markdown file with the summary
-    /// (for a set other than standard: `<!-- spslam evaluate SET: begin -->`
-    /// and `... end -->`).
+    /// (for a set other than standard, its own block between `<!-- spslam
+    /// evaluate SET: begin -->` and `... end -->` when the file has one).
     #[arg(long, value_name = "FILE")]
     update_doc: Option<PathBuf>,
     /// The shared data folder `$DATA` stands for [default: SPSLAM_DATA,
@@ -239,10 +239,30 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
     if let Some(doc) = &args.update_doc {
         let text =
             std::fs::read_to_string(doc).with_context(|| format!("reading {}", doc.display()))?;
+        // The set's own block; a document without one takes the summary in
+        // the plain block.
         let (begin, end) = summary::markers(&args.set);
-        let Some(updated) = summary::replace_block_between(&text, &markdown, &begin, &end) else {
+        let Some(updated) =
+            summary::replace_block_between(&text, &markdown, &begin, &end).or_else(|| {
+                summary::replace_block_between(
+                    &text,
+                    &markdown,
+                    summary::BEGIN_MARKER,
+                    summary::END_MARKER,
+                )
+            })
+        else {
+            let plain = if begin == summary::BEGIN_MARKER {
+                String::new()
+            } else {
+                format!(
+                    " (or `{}` and `{}`)",
+                    summary::BEGIN_MARKER,
+                    summary::END_MARKER
+                )
+            };
             bail!(
-                "{} has no block to replace: put the lines `{begin}` and `{end}` where the summary goes",
+                "{} has no block to replace: put the lines `{begin}` and `{end}`{plain} where the summary goes",
                 doc.display(),
             );
         };

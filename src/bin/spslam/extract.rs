@@ -94,10 +94,19 @@ pub fn run_extract(args: ExtractArgs) -> Result<()> {
             .with_context(|| format!("extraction failed on {}", path.display()))?;
         print_summary(path, &image, &features);
         let filter = extractor.last_periodic_report();
-        println!(
-            "  periodic filter: {} lattice cells cleared, {} low-contrast candidates rejected; exposure gain {:.2}",
-            filter.lattice_cells, filter.low_contrast_rejected, extractor.last_exposure().gain
-        );
+        let gain = extractor.last_exposure().gain;
+        if extractor.config().periodic_filter.enabled {
+            println!(
+                "  periodic filter: {} lattice cells cleared, {} low-contrast candidates rejected; exposure gain {gain:.2}",
+                filter.lattice_cells, filter.low_contrast_rejected
+            );
+        } else if extractor.model_has_grid_artefact() {
+            println!("  periodic filter: off; exposure gain {gain:.2}");
+        } else {
+            println!(
+                "  periodic filter: off (the model has no grid artefact); exposure gain {gain:.2}"
+            );
+        }
         if let Some(out) = &args.json {
             let out = output_path(out, path, several)?;
             write_json(&out, &features)?;
