@@ -166,8 +166,9 @@ fn an_interrupted_save_leaves_the_previous_file_and_bad_files_are_named() {
         ok(std::fs::write(&p, bytes));
         p
     };
-    // Version 1 (before the sensor was stored) and a future version 3.
-    for version in [1u8, 3] {
+    // Version 1 (before the sensor was stored), version 2 (before the
+    // descriptor-distance thresholds were) and a future version 4.
+    for version in [1u8, 2, 4] {
         let mut other = before.clone();
         other[8] = version;
         let name = format!("v{version}.spmap");
