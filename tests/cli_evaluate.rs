@@ -244,12 +244,15 @@ fn update_doc_replaces_only_the_generated_block() {
     let end = "<!-- spslam evaluate: end -->";
     std::fs::write(&doc, format!("# Title\n{begin}\nold table\n{end}\nafter\n")).expect("doc");
     let args = ["--set", "s", "--summary-only", "--update-doc"];
-    let output = evaluate(
-        &cases,
-        &out,
-        dir.path(),
-        &[&args[..], &[doc.to_str().expect("utf-8")]].concat(),
-    );
+    let update = || {
+        evaluate(
+            &cases,
+            &out,
+            dir.path(),
+            &[&args[..], &[doc.to_str().expect("utf-8")]].concat(),
+        )
+    };
+    let output = update();
     assert!(output.status.success(), "{}", logs(&output));
     let text = std::fs::read_to_string(&doc).expect("doc");
     assert!(
@@ -273,12 +276,7 @@ fn update_doc_replaces_only_the_generated_block() {
         format!("{begin}\nstandard table\n{end}\n{set_begin}\nold table\n{set_end}\n"),
     )
     .expect("doc");
-    let own = evaluate(
-        &cases,
-        &out,
-        dir.path(),
-        &[&args[..], &[doc.to_str().expect("utf-8")]].concat(),
-    );
+    let own = update();
     assert!(own.status.success(), "{}", logs(&own));
     let text = std::fs::read_to_string(&doc).expect("doc");
     assert!(
@@ -290,12 +288,7 @@ fn update_doc_replaces_only_the_generated_block() {
     assert!(!text.contains("old table"), "{text}");
 
     std::fs::write(&doc, "no markers\n").expect("doc");
-    let refused = evaluate(
-        &cases,
-        &out,
-        dir.path(),
-        &[&args[..], &[doc.to_str().expect("utf-8")]].concat(),
-    );
+    let refused = update();
     assert_eq!(refused.status.code(), Some(1), "{}", logs(&refused));
     assert!(String::from_utf8_lossy(&refused.stderr).contains(begin));
 }

