@@ -91,6 +91,7 @@ test-rust: build
 
 test-python: setup
 	$(PYTHON) tools/test_export.py
+	$(PYTHON) tools/orbslam3/test_check.py
 
 include cpp_shim/cpp.mk
 include cpp_shim/orbslam3/orbslam3.mk

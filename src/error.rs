@@ -117,9 +117,12 @@ pub enum SlamError {
         /// The map index.
         map: usize,
     },
-    /// The local-mapping thread stopped unexpectedly.
-    #[error("the local-mapping thread stopped: {reason}")]
-    MappingThread {
+    /// A worker thread (local mapping, loop closing, the global BA) could
+    /// not start, or stopped unexpectedly (a panic keeps its message).
+    #[error("the {name} thread stopped: {reason}")]
+    Thread {
+        /// The thread's name (`local-mapping`, `loop-closing`, `global-ba`).
+        name: &'static str,
         /// What happened.
         reason: String,
     },
@@ -185,4 +188,16 @@ impl From<crate::camera::InvalidCamera> for SlamError {
     fn from(e: crate::camera::InvalidCamera) -> Self {
         SlamError::InvalidCamera { reason: e.reason }
     }
+}
+
+/// The message of a caught panic's payload (`panic!` with a literal or a
+/// formatted message), or `"no message"`. The crate's one helper for it:
+/// worker threads, the C ABI and the CLI's pipeline all report panics
+/// through it.
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| (*s).to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "no message".into())
 }

@@ -20,6 +20,7 @@ use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
+use crate::error::panic_message;
 use crate::features::{
     AnmsMethod, Device, ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint,
     PeriodicFilterConfig, Precision, SuperPointExtractor,
@@ -283,16 +284,6 @@ impl From<FeatureError> for FfiError {
 fn set_last_error(message: &str) {
     let text = CString::new(message.replace('\0', " ")).unwrap_or_default();
     LAST_ERROR.with(|e| *e.borrow_mut() = text);
-}
-
-fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
-    if let Some(s) = payload.downcast_ref::<&str>() {
-        s
-    } else if let Some(s) = payload.downcast_ref::<String>() {
-        s
-    } else {
-        "(no message)"
-    }
 }
 
 /// Runs `body`, catching panics, and turns its outcome into a status plus the

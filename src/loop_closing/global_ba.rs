@@ -29,7 +29,7 @@ use crate::optim::{LieGroup, Se3};
 pub const GLOBAL_BA_ITERATIONS: usize = 10;
 
 /// What a global BA did.
-#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct GlobalBaSummary {
     /// Keyframes in the snapshot.
     pub keyframes: usize,
@@ -43,6 +43,9 @@ pub struct GlobalBaSummary {
     pub aborted: bool,
     /// Time of the solve (ms).
     pub solve_ms: f64,
+    /// Why it failed (an error, or its thread's panic), when it did: then
+    /// nothing was applied and the run went on without it.
+    pub failure: Option<String>,
 }
 
 /// The detached problem with the ids to write it back.
@@ -63,7 +66,7 @@ pub struct SolvedGlobalBa {
 impl SolvedGlobalBa {
     /// What the solve did.
     pub fn summary(&self) -> GlobalBaSummary {
-        self.summary
+        self.summary.clone()
     }
 }
 
@@ -139,6 +142,7 @@ pub fn solve_global_ba(
         propagated_keyframes: 0,
         aborted: report.first_stage.termination == Termination::Aborted,
         solve_ms: start.elapsed().as_secs_f64() * 1e3,
+        failure: None,
     };
     Ok(SolvedGlobalBa { snapshot, summary })
 }

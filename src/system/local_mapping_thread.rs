@@ -8,17 +8,24 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::Arc;
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use crate::error::SlamError;
 use crate::map::{KeyFrameId, MapPointId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 
+use super::worker::Worker;
+
+/// The thread's name, in its errors.
+const NAME: &str = "local-mapping";
+
 /// A keyframe for the thread, with the points tracking created with it.
-struct MappingJob {
-    keyframe: KeyFrameId,
-    created: Vec<MapPointId>,
+#[derive(Debug, Clone)]
+pub(crate) struct MappingJob {
+    /// The new keyframe.
+    pub(crate) keyframe: KeyFrameId,
+    /// The points tracking created with it.
+    pub(crate) created: Vec<MapPointId>,
 }
 
 /// What the thread did with one keyframe.
@@ -30,6 +37,17 @@ pub struct MappingResult {
     pub summary: Result<MappingSummary, SlamError>,
 }
 
+/// Local mapping stopped after its current keyframe
+/// ([`MappingThread::stop`]): the mapper with its switches, and the
+/// keyframes it had not started, in order.
+#[derive(Debug)]
+pub(crate) struct StoppedMapping {
+    /// The mapper, as the thread left it.
+    pub(crate) mapper: LocalMapper,
+    /// Queued keyframes not processed yet.
+    pub(crate) unprocessed: Vec<MappingJob>,
+}
+
 /// The local-mapping thread and its queue.
 #[derive(Debug)]
 pub struct MappingThread {
@@ -37,21 +55,31 @@ pub struct MappingThread {
     results: Receiver<MappingResult>,
     pending: Arc<AtomicUsize>,
     abort: Arc<AtomicBool>,
-    handle: Option<JoinHandle<LocalMapper>>,
+    stop: Arc<AtomicBool>,
+    worker: Worker<StoppedMapping>,
 }
 
+/// The thread's body: maps each job until the queue closes, an error
+/// stops it, or a stop is requested (checked between keyframes).
 fn run(
     mut mapper: LocalMapper,
     map: SharedMap,
     jobs: Receiver<MappingJob>,
     results: Sender<MappingResult>,
     pending: Arc<AtomicUsize>,
-) -> LocalMapper {
+    stop: Arc<AtomicBool>,
+) -> StoppedMapping {
     // `pending` counts the job in progress: more than one means tracking
     // has queued another keyframe.
     let waiting = || pending.load(Ordering::Acquire) > 1;
     let mut previous = Duration::ZERO;
-    for job in jobs {
+    let mut unprocessed = Vec::new();
+    while let Ok(job) = jobs.recv() {
+        if stop.load(Ordering::Acquire) {
+            unprocessed.push(job);
+            unprocessed.extend(jobs.try_iter());
+            break;
+        }
         if mapper.slowdown > 1.0 {
             // The slow-machine hook: wait before the work, so that its
             // results (new points, culled keyframes) come late.
@@ -72,39 +100,33 @@ fn run(
             break;
         }
     }
-    mapper
-}
-
-/// The message of a thread's panic payload.
-fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| (*s).to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "no message".into())
+    StoppedMapping {
+        mapper,
+        unprocessed,
+    }
 }
 
 impl MappingThread {
     /// Starts the thread with `mapper` working on `map`. A failed spawn is
-    /// [`SlamError::MappingThread`].
+    /// [`SlamError::Thread`].
     pub fn spawn(mapper: LocalMapper, map: SharedMap) -> Result<Self, SlamError> {
         let (job_tx, job_rx) = mpsc::channel();
         let (result_tx, result_rx) = mpsc::channel();
         let pending = Arc::new(AtomicUsize::new(0));
         let counter = Arc::clone(&pending);
+        let stop = Arc::new(AtomicBool::new(false));
+        let stop_flag = Arc::clone(&stop);
         let abort = mapper.abort_flag();
-        let handle = std::thread::Builder::new()
-            .name("local-mapping".into())
-            .spawn(move || run(mapper, map, job_rx, result_tx, counter))
-            .map_err(|e| SlamError::MappingThread {
-                reason: format!("cannot start it: {e}"),
-            })?;
+        let worker = Worker::spawn(NAME, move || {
+            run(mapper, map, job_rx, result_tx, counter, stop_flag)
+        })?;
         Ok(Self {
             jobs: Some(job_tx),
             results: result_rx,
             pending,
             abort,
-            handle: Some(handle),
+            stop,
+            worker,
         })
     }
 
@@ -115,16 +137,28 @@ impl MappingThread {
 
     /// Queues a keyframe and raises the BA abort flag, so a running local
     /// BA yields to it (ORB-SLAM3's `InsertKeyFrame`).
-    pub fn submit(&self, keyframe: KeyFrameId, created: Vec<MapPointId>) -> Result<(), SlamError> {
-        let stopped = || SlamError::MappingThread {
-            reason: "it is no longer running (an earlier keyframe failed or it panicked)".into(),
-        };
-        let jobs = self.jobs.as_ref().ok_or_else(stopped)?;
+    /// A thread that has stopped is an error with the reason it stopped
+    /// (its panic's message), or saying that an earlier keyframe failed.
+    pub fn submit(
+        &mut self,
+        keyframe: KeyFrameId,
+        created: Vec<MapPointId>,
+    ) -> Result<(), SlamError> {
         self.pending.fetch_add(1, Ordering::AcqRel);
         self.abort.store(true, Ordering::Release);
-        jobs.send(MappingJob { keyframe, created }).map_err(|_| {
-            self.pending.fetch_sub(1, Ordering::AcqRel);
-            stopped()
+        let sent = match self.jobs.as_ref() {
+            Some(jobs) => jobs.send(MappingJob { keyframe, created }).is_ok(),
+            None => false,
+        };
+        if sent {
+            return Ok(());
+        }
+        self.pending.fetch_sub(1, Ordering::AcqRel);
+        Err(match self.worker.join() {
+            Ok(_) => self
+                .worker
+                .error("it is no longer running (an earlier keyframe failed)"),
+            Err(e) => e,
         })
     }
 
@@ -133,34 +167,36 @@ impl MappingThread {
     pub fn poll(&mut self) -> Result<Vec<MappingResult>, SlamError> {
         let results: Vec<MappingResult> = self.results.try_iter().collect();
         let reported_error = results.iter().any(|r| r.summary.is_err());
-        let stopped = self.handle.as_ref().is_some_and(|h| h.is_finished());
-        if stopped && !reported_error {
-            return Err(self.join_failure());
+        if self.worker.is_finished() && !reported_error {
+            return Err(match self.worker.join() {
+                Ok(_) => self.worker.error("it stopped unexpectedly"),
+                Err(e) => e,
+            });
         }
         Ok(results)
     }
 
-    /// Joins a thread that stopped by itself and says why.
-    fn join_failure(&mut self) -> SlamError {
-        let reason = match self.handle.take().map(JoinHandle::join) {
-            Some(Err(payload)) => format!("it panicked: {}", panic_message(payload.as_ref())),
-            Some(Ok(_)) => "it stopped unexpectedly".into(),
-            None => "it was already stopped".into(),
-        };
-        SlamError::MappingThread { reason }
-    }
-
     /// Waits for every queued keyframe, stops the thread and returns the
     /// mapper with the remaining results.
-    pub fn finish(mut self) -> Result<(LocalMapper, Vec<MappingResult>), SlamError> {
+    pub fn finish(self) -> Result<(LocalMapper, Vec<MappingResult>), SlamError> {
+        let (stopped, results) = self.close()?;
+        Ok((stopped.mapper, results))
+    }
+
+    /// ORB-SLAM3's `RequestStop`: the thread finishes the keyframe in
+    /// progress (its local BA told to abort) and stops; the keyframes it
+    /// had not started come back, to be queued again on resuming.
+    pub(crate) fn stop(self) -> Result<(StoppedMapping, Vec<MappingResult>), SlamError> {
+        self.stop.store(true, Ordering::Release);
+        self.abort.store(true, Ordering::Release);
+        self.close()
+    }
+
+    /// Closes the queue and joins the thread.
+    fn close(mut self) -> Result<(StoppedMapping, Vec<MappingResult>), SlamError> {
         drop(self.jobs.take());
-        let handle = self.handle.take().ok_or_else(|| SlamError::MappingThread {
-            reason: "it was already stopped".into(),
-        })?;
-        let mapper = handle.join().map_err(|payload| SlamError::MappingThread {
-            reason: format!("it panicked: {}", panic_message(payload.as_ref())),
-        })?;
-        Ok((mapper, self.results.try_iter().collect()))
+        let stopped = self.worker.join()?;
+        Ok((stopped, self.results.try_iter().collect()))
     }
 }
 
@@ -197,10 +233,58 @@ mod tests {
             std::thread::sleep(Duration::from_millis(10));
         };
         assert!(
-            matches!(&error, SlamError::MappingThread { reason } if reason.contains("planted panic")),
+            matches!(&error, SlamError::Thread { name: "local-mapping", reason } if reason.contains("planted panic")),
             "{error}"
         );
         // Later keyframes are refused, not silently dropped.
         assert!(thread.submit(keyframes[1].0, Vec::new()).is_err());
+    }
+
+    #[test]
+    fn a_stop_finishes_the_current_keyframe_and_returns_the_unstarted_ones() {
+        let world = PointWorld::new(21, 600, (12.0, 4.0, 4.0, 30.0));
+        let (map, keyframes) = world.keyframe_chain(3);
+        let mut mapper = LocalMapper::new(world.rig);
+        mapper.keyframe_culling = false;
+        let (started_tx, started_rx) = std::sync::mpsc::channel();
+        let started_tx = std::sync::Mutex::new(started_tx);
+        mapper.set_before_solve(Some(Arc::new(move || {
+            if let Ok(tx) = started_tx.lock() {
+                let _ = tx.send(());
+            }
+            // Long enough for the test to request the stop meanwhile.
+            std::thread::sleep(Duration::from_millis(300));
+        })));
+        let mut thread =
+            MappingThread::spawn(mapper, map.into_shared()).unwrap_or_else(|e| panic!("{e}"));
+        // Alone in the queue, the first keyframe gets its BA (a keyframe
+        // with others waiting skips it); the rest arrive during that BA.
+        thread
+            .submit(keyframes[2].0, Vec::new())
+            .unwrap_or_else(|e| panic!("{e}"));
+        started_rx
+            .recv_timeout(Duration::from_secs(60))
+            .unwrap_or_else(|e| panic!("the first keyframe never reached its BA: {e}"));
+        for (kf, _) in keyframes[..2].iter().rev() {
+            thread
+                .submit(*kf, Vec::new())
+                .unwrap_or_else(|e| panic!("{e}"));
+        }
+        let (stopped, results) = thread.stop().unwrap_or_else(|e| panic!("{e}"));
+        let done: Vec<_> = results.iter().map(|r| r.keyframe).collect();
+        let left: Vec<_> = stopped.unprocessed.iter().map(|j| j.keyframe).collect();
+        assert_eq!(
+            done,
+            vec![keyframes[2].0],
+            "the keyframe in progress is finished"
+        );
+        assert!(results[0].summary.is_ok());
+        assert_eq!(
+            left,
+            vec![keyframes[1].0, keyframes[0].0],
+            "the rest wait, in order"
+        );
+        // The mapper keeps its switches.
+        assert!(!stopped.mapper.keyframe_culling);
     }
 }

@@ -13,13 +13,13 @@
 
 use std::collections::BTreeMap;
 use std::sync::mpsc::{self, Receiver, Sender};
-use std::thread::JoinHandle;
 
 use crate::camera::CameraRig;
 use crate::error::SlamError;
 use crate::map::{KeyFrameId, SharedMap};
 
 use super::loop_closing_stage::{DetectStep, LoopClosingStage};
+use super::worker::Worker;
 
 /// A keyframe to check, with the maps it is checked against.
 struct LoopJob {
@@ -58,7 +58,7 @@ impl LoopFinding {
 pub(crate) struct LoopClosingThread {
     jobs: Option<Sender<LoopJob>>,
     findings: Receiver<LoopFinding>,
-    handle: Option<JoinHandle<LoopClosingStage>>,
+    worker: Worker<LoopClosingStage>,
 }
 
 fn run(
@@ -110,35 +110,44 @@ impl LoopClosingThread {
     ) -> Result<Self, SlamError> {
         let (job_tx, job_rx) = mpsc::channel();
         let (finding_tx, finding_rx) = mpsc::channel();
-        let handle = std::thread::Builder::new()
-            .name("loop-closing".into())
-            .spawn(move || run(stage, rig, maps, job_rx, finding_tx))
-            .map_err(|e| SlamError::MappingThread {
-                reason: format!("cannot start the loop-closing thread: {e}"),
-            })?;
+        let worker = Worker::spawn("loop-closing", move || {
+            run(stage, rig, maps, job_rx, finding_tx)
+        })?;
         Ok(Self {
             jobs: Some(job_tx),
             findings: finding_rx,
-            handle: Some(handle),
+            worker,
         })
     }
 
-    /// Queues a keyframe of `maps.active` for the check.
-    pub(crate) fn submit(&self, keyframe: KeyFrameId, maps: AtlasView) -> Result<(), SlamError> {
-        let stopped = || SlamError::MappingThread {
-            reason: "the loop-closing thread is no longer running (it panicked)".into(),
+    /// Queues a keyframe of `maps.active` for the check. A thread that has
+    /// stopped is an error with the reason it stopped (its panic's message).
+    pub(crate) fn submit(
+        &mut self,
+        keyframe: KeyFrameId,
+        maps: AtlasView,
+    ) -> Result<(), SlamError> {
+        let sent = match self.jobs.as_ref() {
+            Some(jobs) => jobs.send(LoopJob { keyframe, maps }).is_ok(),
+            None => false,
         };
-        let jobs = self.jobs.as_ref().ok_or_else(stopped)?;
-        jobs.send(LoopJob { keyframe, maps }).map_err(|_| stopped())
+        if sent {
+            return Ok(());
+        }
+        Err(match self.worker.join() {
+            Ok(_) => self.worker.error("it is no longer running"),
+            Err(e) => e,
+        })
     }
 
     /// The findings that arrived so far, without waiting. A thread that
-    /// stopped by itself (it panicked) is an error.
+    /// stopped by itself (it panicked) is an error with its message.
     pub(crate) fn poll(&mut self) -> Result<Vec<LoopFinding>, SlamError> {
         let findings: Vec<LoopFinding> = self.findings.try_iter().collect();
-        if self.handle.as_ref().is_some_and(|h| h.is_finished()) {
-            return Err(SlamError::MappingThread {
-                reason: "the loop-closing thread stopped unexpectedly (it panicked)".into(),
+        if self.worker.is_finished() {
+            return Err(match self.worker.join() {
+                Ok(_) => self.worker.error("it stopped unexpectedly"),
+                Err(e) => e,
             });
         }
         Ok(findings)
@@ -149,12 +158,7 @@ impl LoopClosingThread {
     /// findings not polled yet.
     pub(crate) fn finish(mut self) -> Result<(LoopClosingStage, Vec<LoopFinding>), SlamError> {
         drop(self.jobs.take());
-        let handle = self.handle.take().ok_or_else(|| SlamError::MappingThread {
-            reason: "the loop-closing thread was already stopped".into(),
-        })?;
-        let stage = handle.join().map_err(|_| SlamError::MappingThread {
-            reason: "the loop-closing thread panicked".into(),
-        })?;
+        let stage = self.worker.join()?;
         Ok((stage, self.findings.try_iter().collect()))
     }
 }

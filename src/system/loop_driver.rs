@@ -213,7 +213,7 @@ impl SlamSystem {
         }
         // A running global BA works on poses the correction replaces.
         self.abort_global_ba();
-        let paused = self.pause_mapping()?;
+        self.pause_mapping()?;
         let corrected = match detection {
             Detection::Loop(accepted) => {
                 match stage.correct(&view.active, &accepted, &self.rig)? {
@@ -242,7 +242,7 @@ impl SlamSystem {
                 }
             }
         };
-        self.resume_mapping(paused, &corrected)?;
+        self.resume_mapping(&corrected)?;
         self.start_global_ba(&corrected)
     }
 

@@ -13,6 +13,7 @@
 //! sits above them all; nothing below imports from it.
 
 mod atlas;
+mod global_ba_driver;
 mod global_ba_thread;
 mod lagged_mapping;
 mod local_mapping_thread;
@@ -22,8 +23,11 @@ mod loop_driver;
 mod map_files;
 mod records;
 mod slam_system;
+mod trajectory;
+mod worker;
 
 pub use atlas::{Atlas, AtlasMap, MapIndex};
+pub use global_ba_thread::GlobalBaHook;
 pub use local_mapping_thread::{MappingResult, MappingThread};
 pub use loop_closing_stage::{LoopRecord, MergeRecord, RejectedLoopRecord};
 pub use map_files::{LoadedMapUse, MapProvenance};

@@ -11,7 +11,7 @@ use std::time::Instant;
 use crate::camera::CameraRig;
 use crate::error::SlamError;
 use crate::features::GrayImageView;
-use crate::loop_closing::{apply_global_ba, GlobalBaSummary, SolvedGlobalBa};
+use crate::loop_closing::GlobalBaSummary;
 use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
@@ -21,12 +21,12 @@ use crate::tracking::{
 };
 
 use super::atlas::{Atlas, MapIndex};
-use super::global_ba_thread::{run_global_ba, GlobalBaThread};
+use super::global_ba_thread::{GlobalBaHook, GlobalBaThread};
 use super::lagged_mapping::{LaggedJob, LaggedMapping};
-use super::local_mapping_thread::{MappingResult, MappingThread};
+use super::local_mapping_thread::{MappingJob, MappingResult, MappingThread, StoppedMapping};
 use super::loop_closing_stage::{LoopClosingStage, LoopLog};
 use super::loop_closing_thread::LoopClosingThread;
-use super::records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
+use super::records::{FrameRecord, FrameTimings, RelativePose};
 
 /// Where loop detection runs: on the tracking thread between frames
 /// (with inline mapping: deterministic), or on its own thread (with a
@@ -49,6 +49,15 @@ pub(super) enum Mapping {
         thread: MappingThread,
         waiting: BTreeMap<KeyFrameId, usize>,
     },
+    /// Its thread stopped after its current keyframe for a correction
+    /// ([`SlamSystem::pause_mapping`]); the system holds the mapper (with
+    /// its switches) and the keyframes not started, so an error before
+    /// [`SlamSystem::resume_mapping`] loses neither: the next frame, or
+    /// [`SlamSystem::finish`], resumes it.
+    Paused {
+        stopped: StoppedMapping,
+        waiting: BTreeMap<KeyFrameId, usize>,
+    },
 }
 
 /// SLAM over a sequence of frames of one sensor (the rig's: rectified
@@ -59,8 +68,8 @@ pub(super) enum Mapping {
 /// every keyframe local mapping has processed, as ORB-SLAM3's
 /// `LoopClosing`: on its own thread when local mapping has one, else on
 /// the caller's thread between frames. A loop or merge is corrected on the
-/// caller's thread between frames, with local mapping paused (its queue
-/// finished first), as ORB-SLAM3's `RequestStop`; the global BA that
+/// caller's thread between frames, with local mapping stopped after its
+/// current keyframe, as ORB-SLAM3's `RequestStop`; the global BA that
 /// follows runs on its own thread.
 pub struct SlamSystem {
     pub(super) rig: CameraRig,
@@ -76,8 +85,9 @@ pub struct SlamSystem {
     /// Keyframes processed by local mapping, not yet given to loop closing.
     pub(super) loop_inbox: Vec<KeyFrameId>,
     pub(super) loop_log: LoopLog,
-    global_ba: Option<GlobalBaThread>,
-    global_ba_runs: Vec<GlobalBaSummary>,
+    pub(super) global_ba: Option<GlobalBaThread>,
+    pub(super) global_ba_runs: Vec<GlobalBaSummary>,
+    pub(super) global_ba_hook: Option<GlobalBaHook>,
 }
 
 impl SlamSystem {
@@ -98,98 +108,66 @@ impl SlamSystem {
             loop_log: LoopLog::default(),
             global_ba: None,
             global_ba_runs: Vec::new(),
+            global_ba_hook: None,
         }
     }
 
-    /// Restarts the local-mapping thread paused by [`Self::pause_mapping`].
-    pub(super) fn resume_mapping(
-        &mut self,
-        paused: Option<LocalMapper>,
-        map: &SharedMap,
-    ) -> Result<(), SlamError> {
-        if let Some(mapper) = paused {
-            let thread = MappingThread::spawn(mapper, map.clone())?;
-            let waiting = BTreeMap::new();
-            self.mapping = Mapping::Thread { thread, waiting };
-        }
-        Ok(())
-    }
-
-    /// The global BAs run after loop corrections (aborted ones included).
-    pub fn global_ba_runs(&self) -> &[GlobalBaSummary] {
-        &self.global_ba_runs
-    }
-
-    /// Aborts a running global BA (a new loop, a new map, a reset).
-    pub(super) fn abort_global_ba(&mut self) {
-        if let Some(running) = self.global_ba.take() {
-            running.abort();
-            self.global_ba_runs.push(GlobalBaSummary {
-                aborted: true,
-                ..GlobalBaSummary::default()
-            });
-        }
-    }
-
-    /// Starts the global BA after a correction: on its own thread when
-    /// local mapping has one, else right here (deterministic runs).
-    pub(super) fn start_global_ba(&mut self, map: &SharedMap) -> Result<(), SlamError> {
-        if matches!(self.mapping, Mapping::Thread { .. }) {
-            self.global_ba = Some(GlobalBaThread::spawn(map.clone(), self.rig)?);
+    /// Restarts the local-mapping thread stopped by [`Self::pause_mapping`]
+    /// on `map` (the corrected or merged map), with the keyframes it had
+    /// not started queued again; one that no longer exists in `map` is
+    /// dropped (its frame's record gets no mapping summary). A no-op
+    /// unless mapping is paused.
+    pub(super) fn resume_mapping(&mut self, map: &SharedMap) -> Result<(), SlamError> {
+        if !matches!(self.mapping, Mapping::Paused { .. }) {
             return Ok(());
         }
-        let never = std::sync::atomic::AtomicBool::new(false);
-        if let Some(solved) = run_global_ba(map, &self.rig, &never)? {
-            self.apply_global_ba(map, solved)?;
-        }
-        Ok(())
-    }
-
-    /// Applies a solved global BA with local mapping paused.
-    fn apply_global_ba(
-        &mut self,
-        map: &SharedMap,
-        solved: SolvedGlobalBa,
-    ) -> Result<(), SlamError> {
-        let paused = self.pause_mapping()?;
-        let summary = {
-            let mut m = map.write().map_err(|_| SlamError::PoisonedMap)?;
-            apply_global_ba(&mut m, solved)
-        };
-        tracing::info!(
-            keyframes = summary.keyframes,
-            points = summary.points,
-            propagated = summary.propagated_keyframes,
-            solve_ms = summary.solve_ms,
-            "global BA applied"
-        );
-        self.global_ba_runs.push(summary);
-        self.resume_mapping(paused, map)
-    }
-
-    /// Applies the background global BA when it has finished (or, with
-    /// `wait`, waits for it).
-    fn poll_global_ba(&mut self, wait: bool) -> Result<(), SlamError> {
-        let Some(running) = self.global_ba.take() else {
+        let placeholder = Mapping::Inline(LocalMapper::new(self.rig));
+        let Mapping::Paused {
+            stopped,
+            mut waiting,
+        } = std::mem::replace(&mut self.mapping, placeholder)
+        else {
             return Ok(());
         };
-        if !wait && !running.is_finished() {
-            self.global_ba = Some(running);
-            return Ok(());
+        let StoppedMapping {
+            mapper,
+            unprocessed,
+        } = stopped;
+        let (alive, gone): (Vec<MappingJob>, Vec<MappingJob>) = {
+            let m = map.read().map_err(|_| SlamError::PoisonedMap)?;
+            unprocessed
+                .into_iter()
+                .partition(|job| m.keyframe(job.keyframe).is_ok())
+        };
+        for job in gone {
+            tracing::warn!(keyframe = ?job.keyframe, "a queued keyframe gone after the correction was not mapped");
+            waiting.remove(&job.keyframe);
         }
-        let map = running.map.clone();
-        if let Some(solved) = running.join()? {
-            self.apply_global_ba(&map, solved)?;
+        let mut thread = MappingThread::spawn(mapper, map.clone())?;
+        for job in alive {
+            thread.submit(job.keyframe, job.created)?;
+        }
+        self.mapping = Mapping::Thread { thread, waiting };
+        Ok(())
+    }
+
+    /// Resumes local mapping on the active map if an error left it paused.
+    fn resume_if_paused(&mut self) -> Result<(), SlamError> {
+        if matches!(self.mapping, Mapping::Paused { .. }) {
+            tracing::warn!("local mapping was left paused by an error; resuming it");
+            let map = self.atlas.active().map.clone();
+            self.resume_mapping(&map)?;
         }
         Ok(())
     }
 
-    /// Stops the local-mapping thread after its queue (its results are
-    /// filed) and returns its mapper; `None` when mapping runs inline.
-    pub(super) fn pause_mapping(&mut self) -> Result<Option<LocalMapper>, SlamError> {
+    /// Stops the local-mapping thread after its current keyframe
+    /// (ORB-SLAM3's `RequestStop`; its results are filed) and holds it in
+    /// [`Mapping::Paused`] until [`Self::resume_mapping`]. With mapping
+    /// inline, the lagged keyframes are mapped now instead.
+    pub(super) fn pause_mapping(&mut self) -> Result<(), SlamError> {
         let Mapping::Thread { .. } = self.mapping else {
-            self.drain_lagged_mapping()?;
-            return Ok(None);
+            return self.drain_lagged_mapping();
         };
         let placeholder = Mapping::Inline(LocalMapper::new(self.rig));
         let Mapping::Thread {
@@ -197,12 +175,12 @@ impl SlamSystem {
             mut waiting,
         } = std::mem::replace(&mut self.mapping, placeholder)
         else {
-            return Ok(None);
+            return Ok(());
         };
-        let (mapper, results) = thread.finish()?;
-        self.attach(results, &mut waiting)?;
-        // The records of keyframes still waiting were filed by `attach`.
-        Ok(Some(mapper))
+        let (stopped, results) = thread.stop()?;
+        let attached = self.attach(results, &mut waiting);
+        self.mapping = Mapping::Paused { stopped, waiting };
+        attached
     }
 
     /// The active map.
@@ -220,13 +198,14 @@ impl SlamSystem {
     pub fn mapper_mut(&mut self) -> Option<&mut LocalMapper> {
         match &mut self.mapping {
             Mapping::Inline(mapper) => Some(mapper),
-            Mapping::Thread { .. } => None,
+            Mapping::Thread { .. } | Mapping::Paused { .. } => None,
         }
     }
 
     /// Moves local mapping to its own thread (no-op when it already is).
     /// A failed spawn is an error, and mapping stays inline.
     pub fn spawn_mapping_thread(&mut self) -> Result<(), SlamError> {
+        self.resume_if_paused()?;
         self.drain_lagged_mapping()?;
         self.mapping_lag = None;
         let Mapping::Inline(mapper) = &mut self.mapping else {
@@ -316,7 +295,7 @@ impl SlamSystem {
     /// (ORB-SLAM3's `Reset`). Local mapping stays where it runs and keeps
     /// its switches.
     pub fn reset(&mut self) -> Result<(), SlamError> {
-        let threaded = matches!(self.mapping, Mapping::Thread { .. });
+        let threaded = !matches!(self.mapping, Mapping::Inline(_));
         self.finish()?;
         if let Mapping::Inline(mapper) = &mut self.mapping {
             *mapper = mapper.fresh();
@@ -338,6 +317,7 @@ impl SlamSystem {
     /// loop closing to check them, brings both back inline, and applies
     /// the last global BA. Call before reading the final trajectory.
     pub fn finish(&mut self) -> Result<(), SlamError> {
+        self.resume_if_paused()?;
         let Mapping::Thread { .. } = self.mapping else {
             self.drain_lagged_mapping()?;
             self.stop_loop_closing_thread()?;
@@ -381,6 +361,7 @@ impl SlamSystem {
     }
 
     fn poll_mapping(&mut self) -> Result<(), SlamError> {
+        self.resume_if_paused()?;
         let Mapping::Thread { thread, waiting } = &mut self.mapping else {
             return Ok(());
         };
@@ -399,7 +380,7 @@ impl SlamSystem {
     /// local mapping finishes the old map's queue, then works on the new
     /// map with fresh state; tracking starts uninitialised.
     fn start_new_map(&mut self, index: usize) -> Result<(), SlamError> {
-        let threaded = matches!(self.mapping, Mapping::Thread { .. });
+        let threaded = !matches!(self.mapping, Mapping::Inline(_));
         self.finish()?;
         if let Mapping::Inline(mapper) = &mut self.mapping {
             *mapper = mapper.fresh();
@@ -508,6 +489,7 @@ impl SlamSystem {
         let stereo_points = frame.stereo_count();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),
+            Mapping::Paused { stopped, .. } => stopped.unprocessed.len(),
             Mapping::Inline(_) => self.mapping_lag.as_ref().map_or(0, LaggedMapping::pending),
         };
         if queue > 0 {
@@ -537,6 +519,13 @@ impl SlamSystem {
                 }
                 Mapping::Thread { thread, waiting } => {
                     thread.submit(*kf, created.clone())?;
+                    waiting.insert(*kf, self.records.len());
+                }
+                Mapping::Paused { stopped, waiting } => {
+                    stopped.unprocessed.push(MappingJob {
+                        keyframe: *kf,
+                        created: created.clone(),
+                    });
                     waiting.insert(*kf, self.records.len());
                 }
             }
@@ -594,156 +583,5 @@ impl SlamSystem {
     /// The tracking state now.
     pub fn state(&self) -> TrackingState {
         self.tracker.state()
-    }
-
-    /// Every processed frame's camera-to-world pose `T_wc`, one row per
-    /// input frame, from its reference keyframe's current pose.
-    ///
-    /// A frame without a pose (before initialisation, lost, unreadable)
-    /// repeats the previous pose (identity at first). The world is the
-    /// first map's frame; a later map is anchored so that its first
-    /// tracked frame sits at the last pose known before it began (see
-    /// [`MapSummary::anchored_at_frame`]): the motion during the gap is
-    /// unknown, and the map's drift from there on is its own.
-    pub fn trajectory(&self) -> Result<Vec<(f64, Se3)>, SlamError> {
-        Ok(self
-            .anchored_poses()?
-            .into_iter()
-            .map(|(t, pose, _)| (t, pose))
-            .collect())
-    }
-
-    /// `(timestamp, T_wc, (map, anchor frame) for a map's first pose)` per record.
-    #[allow(clippy::type_complexity)]
-    fn anchored_poses(&self) -> Result<Vec<(f64, Se3, Option<(MapIndex, usize)>)>, SlamError> {
-        // Map → T_world,map.
-        let mut anchors: BTreeMap<MapIndex, Se3> = BTreeMap::new();
-        let mut previous = Se3::identity();
-        let mut previous_frame = None;
-        let mut out = Vec::with_capacity(self.records.len());
-        for record in &self.records {
-            let mut anchored = None;
-            if let Some(rel) = record.relative_pose {
-                let Some(entry) = self.atlas.get(rel.map) else {
-                    return Err(SlamError::UnknownAtlasMap { map: rel.map });
-                };
-                let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
-                if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
-                    // T_map,c
-                    let in_map = rel.pose.compose(&kf_pose).inverse();
-                    let loaded = entry.loaded;
-                    let anchor = *anchors.entry(rel.map).or_insert_with(|| {
-                        if loaded {
-                            // A loaded map's frame is the world frame.
-                            return Se3::identity();
-                        }
-                        if rel.map > 0 {
-                            anchored = Some((rel.map, previous_frame.unwrap_or(record.index)));
-                        }
-                        previous.compose(&in_map.inverse())
-                    });
-                    previous = anchor.compose(&in_map);
-                    previous_frame = Some(record.index);
-                }
-            }
-            out.push((record.timestamp, previous, anchored));
-        }
-        Ok(out)
-    }
-
-    /// The live keyframes' `(timestamp, T_wc)` of every map, in the
-    /// trajectory's world frame, in creation order (map by map).
-    pub fn keyframe_trajectory(&self) -> Result<Vec<(f64, Se3)>, SlamError> {
-        let anchors = self.map_anchors()?;
-        let mut out = Vec::new();
-        for entry in self.atlas.maps() {
-            let Some(anchor) = anchors.get(&entry.index) else {
-                continue;
-            };
-            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
-            out.extend(
-                map.keyframes()
-                    .map(|kf| (kf.timestamp, anchor.compose(&kf.pose_wc()))),
-            );
-        }
-        Ok(out)
-    }
-
-    /// `T_world,map` of every map with a tracked frame.
-    fn map_anchors(&self) -> Result<BTreeMap<MapIndex, Se3>, SlamError> {
-        let poses = self.anchored_poses()?;
-        let mut anchors = BTreeMap::new();
-        for (record, (_, world_pose, _)) in self.records.iter().zip(&poses) {
-            let Some(rel) = record.relative_pose else {
-                continue;
-            };
-            if anchors.contains_key(&rel.map) {
-                continue;
-            }
-            let Some(entry) = self.atlas.get(rel.map) else {
-                continue;
-            };
-            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
-            if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
-                let in_map = rel.pose.compose(&kf_pose).inverse();
-                anchors.insert(rel.map, world_pose.compose(&in_map.inverse()));
-            }
-        }
-        Ok(anchors)
-    }
-
-    /// Totals so far.
-    pub fn summary(&self) -> Result<SlamSummary, SlamError> {
-        let mut s = SlamSummary {
-            frames: self.records.len(),
-            ..SlamSummary::default()
-        };
-        for entry in self.atlas.maps() {
-            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
-            s.keyframes += map.keyframe_count();
-            s.map_points += map.map_point_count();
-            s.maps.push(MapSummary {
-                index: entry.index,
-                first_frame: entry.first_frame,
-                keyframes: map.keyframe_count(),
-                map_points: map.map_point_count(),
-                merged_into: entry.merged_into,
-                ..MapSummary::default()
-            });
-        }
-        for (_, _, anchored) in self.anchored_poses()? {
-            if let Some((map, frame)) = anchored {
-                if let Some(m) = s.maps.get_mut(map) {
-                    m.anchored_at_frame = Some(frame);
-                }
-            }
-        }
-        let mut sum = FrameTimings::default();
-        for r in &self.records {
-            match r.state {
-                TrackingState::Ok => s.tracked += 1,
-                TrackingState::Lost => s.lost += 1,
-                TrackingState::NotInitialised => s.not_initialised += 1,
-            }
-            if let Some(m) = s.maps.get_mut(r.map) {
-                m.frames += 1;
-                m.tracked += usize::from(r.state == TrackingState::Ok);
-            }
-            s.unreadable += usize::from(r.unreadable.is_some());
-            s.relocalisations += usize::from(r.method == TrackingMethod::Relocalisation);
-            s.keyframes_inserted += usize::from(r.keyframe);
-            sum.extraction_ms += r.timings.extraction_ms;
-            sum.stereo_ms += r.timings.stereo_ms;
-            sum.tracking_ms += r.timings.tracking_ms;
-            sum.mapping_ms += r.timings.mapping_ms;
-        }
-        let n = self.records.len().max(1) as f64;
-        s.mean_timings = FrameTimings {
-            extraction_ms: sum.extraction_ms / n,
-            stereo_ms: sum.stereo_ms / n,
-            tracking_ms: sum.tracking_ms / n,
-            mapping_ms: sum.mapping_ms / n,
-        };
-        Ok(s)
     }
 }

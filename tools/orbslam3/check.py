@@ -31,7 +31,11 @@ depend on.
 
 Exit status 0 when every check passes: no run crashed (each one exited
 normally), SuperPoint's float and binary runs tracked every frame and wrote a
-pose for each, and float's ATE is within --max-float-ate. 1 otherwise.
+pose for each, and float's ATE (SE3) is within bounds: on the default
+sequence (KITTI 06) at most --max-float-ate (0.12 m); on any other sequence
+at most --max-float-ate-ratio (2.0) times ORB mode's mean ATE in the same
+check (the ORB rows are the reference a new sequence brings with it).
+1 otherwise.
 """
 import argparse
 import hashlib
@@ -52,6 +56,10 @@ import run_stereo  # noqa: E402  (same folder)
 DATA = os.environ.get("SPSLAM_DATA") or os.path.join(os.path.dirname(ROOT), "shared", "data")
 SPSLAM = os.path.join(ROOT, "target", "release", "spslam")
 MODES = ("orb", "float", "binary")
+# The absolute bound on float mode's ATE (SE3, m) on the default sequence (KITTI 06).
+DEFAULT_SEQUENCE_MAX_FLOAT_ATE = 0.12
+# On any other sequence: float mode's ATE at most this many times ORB mode's in the same check.
+FLOAT_ATE_RATIO = 2.0
 
 # ORB-SLAM3's KITTI stereo settings (KITTI04-12.yaml): 2000 features, 1.2, 8 levels, FAST 20/7.
 EXTRACTOR = SimpleNamespace(nfeatures=2000, scale_factor=1.2, nlevels=8, ini_th_fast=20, min_th_fast=7, th_depth=35.0)
@@ -209,6 +217,42 @@ def spread(values):
             "min": min(values), "max": max(values)}
 
 
+def is_default_sequence(seq):
+    """Whether `seq` is the default sequence (KITTI 06), where the absolute ATE bound was measured."""
+    default = os.path.join(DATA, "kitti", "sequences", "06")
+    return os.path.realpath(seq) == os.path.realpath(default)
+
+
+def float_ate_failures(modes, a):
+    """Float mode's ATE against the absolute bound (the default sequence, or --max-float-ate) and
+    against ORB mode's ATE in the same check (any sequence)."""
+    if "float" not in modes:
+        return []
+    ate = modes["float"]["ate_se3_m"]
+    if not ate:
+        return []
+    failures = []
+    bound = a.max_float_ate
+    if bound is None and is_default_sequence(a.seq):
+        bound = DEFAULT_SEQUENCE_MAX_FLOAT_ATE
+    if bound is not None and ate["max"] > bound:
+        failures.append(f"float mode's ATE SE3 up to {ate['max']:.4f} m > {bound} m")
+    ratio_bound = a.max_float_ate_ratio
+    if ratio_bound is None and not is_default_sequence(a.seq):
+        ratio_bound = FLOAT_ATE_RATIO
+    orb = modes.get("orb", {}).get("ate_se3_m")
+    if ratio_bound is not None and orb and orb["mean"] > 0:
+        ratio = ate["max"] / orb["mean"]
+        log(f"float mode's ATE SE3 up to {ate['max']:.4f} m = {ratio:.2f} x ORB mode's mean {orb['mean']:.4f} m "
+            f"(bound {ratio_bound} x)")
+        if ratio > ratio_bound:
+            failures.append(f"float mode's ATE SE3 up to {ate['max']:.4f} m is {ratio:.2f} x ORB mode's "
+                            f"{orb['mean']:.4f} m > {ratio_bound} x")
+    elif bound is None:
+        log("no ATE bound applies: ORB mode did not run (or has no ATE) and this is not the default sequence")
+    return failures
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--seq", default=os.path.join(DATA, "kitti", "sequences", "06"), help="KITTI-layout sequence")
@@ -224,9 +268,15 @@ def main():
     ap.add_argument("--vocab-depth", type=int, default=5,
                     help="tree depth L (ORBvoc.txt has 6; 5 suits the small training set: float words are 3.4 KB of text each)")
     ap.add_argument("--vocab-max-images", type=int, default=40, help="evenly spaced training images (0: all)")
-    ap.add_argument("--max-float-ate", type=float, default=0.12,
-                    help="float mode's ATE (SE3, m) above this fails the check: a regression bound over the "
-                         "measured 0.084-0.088 m on KITTI 06 (EVALUATION.md); the goal of 0.040 m is not reached")
+    ap.add_argument("--max-float-ate", type=float, default=None,
+                    help="float mode's ATE (SE3, m) above this fails the check. Default: 0.12 m on the default "
+                         "sequence (KITTI 06: a regression bound over the measured 0.084-0.088 m, EVALUATION.md; "
+                         "the goal of 0.040 m is not reached); on any other sequence no absolute bound, only the "
+                         "relative one (--max-float-ate-ratio)")
+    ap.add_argument("--max-float-ate-ratio", type=float, default=None,
+                    help=f"float mode's ATE (SE3) above this many times ORB mode's mean ATE in the same check fails "
+                         f"it. Default: {FLOAT_ATE_RATIO} on any sequence but the default one, where ORB mode ran "
+                         f"(measured: float/ORB 0.96-1.07 on a KITTI highway excerpt, 1.4-1.7 on KITTI 06)")
     a = ap.parse_args()
 
     for path, what in ((a.seq, "sequence folder"), (a.gt, "ground truth"), (SPSLAM, "spslam binary (make build)"),
@@ -287,10 +337,7 @@ def main():
                                 f"{r.get('poses_written')} poses")
             if "eval_error" in r:
                 failures.append(f"{mode} run {k}: spslam eval failed: {r['eval_error']}")
-    if "float" in summary["modes"]:
-        ate = summary["modes"]["float"]["ate_se3_m"]
-        if ate and ate["max"] > a.max_float_ate:
-            failures.append(f"float mode's ATE SE3 up to {ate['max']:.4f} m > {a.max_float_ate} m")
+    failures += float_ate_failures(summary["modes"], a)
     summary["failures"] = failures
     with open(os.path.join(a.out, "summary.json"), "w") as f:
         json.dump(summary, f, indent=1)

@@ -8,12 +8,12 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use indicatif::ProgressBar;
-use spslam::error::SlamError;
+use spslam::error::{panic_message, SlamError};
 use spslam::system::SlamSystem;
 
 use std::sync::mpsc::Receiver;
 
-use super::pipeline::{panic_text, PrepareError, Prepared, PreparedFrame};
+use super::pipeline::{PrepareError, Prepared, PreparedFrame};
 use super::signals::StopRequest;
 use super::source::{InputFrame, Unreadable, UnreadableCause};
 
@@ -187,7 +187,7 @@ impl FrameLoop<'_> {
             Ok(Err(e)) => Err(classify(e, frame)),
             Err(payload) => Err(FrameError::Fatal(format!(
                 "the system panicked: {}",
-                panic_text(payload.as_ref())
+                panic_message(payload.as_ref())
             ))),
         }
     }

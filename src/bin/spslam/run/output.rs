@@ -300,7 +300,9 @@ impl RunOutputs<'_> {
         text.push_str(&loops_text(slam.loops(), slam.rejected_loops()));
         text.push_str(&merges_text(slam.merges()));
         for g in slam.global_ba_runs() {
-            text.push_str(&if g.aborted {
+            text.push_str(&if let Some(failure) = &g.failure {
+                format!("global BA: failed and skipped (the map keeps its corrected poses): {failure}\n")
+            } else if g.aborted {
                 "global BA: aborted by a newer loop\n".to_string()
             } else {
                 format!(

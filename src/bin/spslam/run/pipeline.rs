@@ -15,7 +15,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::time::Instant;
 
-use spslam::error::SlamError;
+use spslam::error::{panic_message, SlamError};
 use spslam::tracking::{Extractors, SensorFeatures};
 
 use super::source::{InputFrame, LoadedImages, Source, Unreadable};
@@ -101,7 +101,7 @@ fn prepare_all(
         }))
         .unwrap_or_else(|payload| {
             Err(PrepareError::Panicked {
-                message: panic_text(payload.as_ref()),
+                message: panic_message(payload.as_ref()),
             })
         });
         let panicked = matches!(result, Err(PrepareError::Panicked { .. }));
@@ -130,13 +130,4 @@ fn prepare(
         features,
         extraction_ms: start.elapsed().as_secs_f64() * 1e3,
     })
-}
-
-/// The message of a caught panic.
-pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
-    payload
-        .downcast_ref::<&str>()
-        .map(|s| s.to_string())
-        .or_else(|| payload.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "unknown panic".into())
 }

@@ -1,0 +1,166 @@
+//! What a run's records say, in the world frame: the anchored
+//! trajectory (one pose per input frame, later maps anchored where the
+//! previous one left off), the keyframes' trajectory, and the totals.
+
+use std::collections::BTreeMap;
+
+use crate::error::SlamError;
+use crate::optim::{LieGroup, Se3};
+use crate::tracking::{TrackingMethod, TrackingState};
+
+use super::atlas::MapIndex;
+use super::records::{FrameTimings, MapSummary, SlamSummary};
+use super::SlamSystem;
+
+impl SlamSystem {
+    /// Every processed frame's camera-to-world pose `T_wc`, one row per
+    /// input frame, from its reference keyframe's current pose.
+    ///
+    /// A frame without a pose (before initialisation, lost, unreadable)
+    /// repeats the previous pose (identity at first). The world is the
+    /// first map's frame; a later map is anchored so that its first
+    /// tracked frame sits at the last pose known before it began (see
+    /// [`MapSummary::anchored_at_frame`]): the motion during the gap is
+    /// unknown, and the map's drift from there on is its own.
+    pub fn trajectory(&self) -> Result<Vec<(f64, Se3)>, SlamError> {
+        Ok(self
+            .anchored_poses()?
+            .into_iter()
+            .map(|(t, pose, _)| (t, pose))
+            .collect())
+    }
+
+    /// `(timestamp, T_wc, (map, anchor frame) for a map's first pose)` per record.
+    #[allow(clippy::type_complexity)]
+    fn anchored_poses(&self) -> Result<Vec<(f64, Se3, Option<(MapIndex, usize)>)>, SlamError> {
+        // Map → T_world,map.
+        let mut anchors: BTreeMap<MapIndex, Se3> = BTreeMap::new();
+        let mut previous = Se3::identity();
+        let mut previous_frame = None;
+        let mut out = Vec::with_capacity(self.records.len());
+        for record in &self.records {
+            let mut anchored = None;
+            if let Some(rel) = record.relative_pose {
+                let Some(entry) = self.atlas.get(rel.map) else {
+                    return Err(SlamError::UnknownAtlasMap { map: rel.map });
+                };
+                let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+                if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
+                    // T_map,c
+                    let in_map = rel.pose.compose(&kf_pose).inverse();
+                    let loaded = entry.loaded;
+                    let anchor = *anchors.entry(rel.map).or_insert_with(|| {
+                        if loaded {
+                            // A loaded map's frame is the world frame.
+                            return Se3::identity();
+                        }
+                        if rel.map > 0 {
+                            anchored = Some((rel.map, previous_frame.unwrap_or(record.index)));
+                        }
+                        previous.compose(&in_map.inverse())
+                    });
+                    previous = anchor.compose(&in_map);
+                    previous_frame = Some(record.index);
+                }
+            }
+            out.push((record.timestamp, previous, anchored));
+        }
+        Ok(out)
+    }
+
+    /// The live keyframes' `(timestamp, T_wc)` of every map, in the
+    /// trajectory's world frame, in creation order (map by map).
+    pub fn keyframe_trajectory(&self) -> Result<Vec<(f64, Se3)>, SlamError> {
+        let anchors = self.map_anchors()?;
+        let mut out = Vec::new();
+        for entry in self.atlas.maps() {
+            let Some(anchor) = anchors.get(&entry.index) else {
+                continue;
+            };
+            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+            out.extend(
+                map.keyframes()
+                    .map(|kf| (kf.timestamp, anchor.compose(&kf.pose_wc()))),
+            );
+        }
+        Ok(out)
+    }
+
+    /// `T_world,map` of every map with a tracked frame.
+    fn map_anchors(&self) -> Result<BTreeMap<MapIndex, Se3>, SlamError> {
+        let poses = self.anchored_poses()?;
+        let mut anchors = BTreeMap::new();
+        for (record, (_, world_pose, _)) in self.records.iter().zip(&poses) {
+            let Some(rel) = record.relative_pose else {
+                continue;
+            };
+            if anchors.contains_key(&rel.map) {
+                continue;
+            }
+            let Some(entry) = self.atlas.get(rel.map) else {
+                continue;
+            };
+            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+            if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
+                let in_map = rel.pose.compose(&kf_pose).inverse();
+                anchors.insert(rel.map, world_pose.compose(&in_map.inverse()));
+            }
+        }
+        Ok(anchors)
+    }
+
+    /// Totals so far.
+    pub fn summary(&self) -> Result<SlamSummary, SlamError> {
+        let mut s = SlamSummary {
+            frames: self.records.len(),
+            ..SlamSummary::default()
+        };
+        for entry in self.atlas.maps() {
+            let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+            s.keyframes += map.keyframe_count();
+            s.map_points += map.map_point_count();
+            s.maps.push(MapSummary {
+                index: entry.index,
+                first_frame: entry.first_frame,
+                keyframes: map.keyframe_count(),
+                map_points: map.map_point_count(),
+                merged_into: entry.merged_into,
+                ..MapSummary::default()
+            });
+        }
+        for (_, _, anchored) in self.anchored_poses()? {
+            if let Some((map, frame)) = anchored {
+                if let Some(m) = s.maps.get_mut(map) {
+                    m.anchored_at_frame = Some(frame);
+                }
+            }
+        }
+        let mut sum = FrameTimings::default();
+        for r in &self.records {
+            match r.state {
+                TrackingState::Ok => s.tracked += 1,
+                TrackingState::Lost => s.lost += 1,
+                TrackingState::NotInitialised => s.not_initialised += 1,
+            }
+            if let Some(m) = s.maps.get_mut(r.map) {
+                m.frames += 1;
+                m.tracked += usize::from(r.state == TrackingState::Ok);
+            }
+            s.unreadable += usize::from(r.unreadable.is_some());
+            s.relocalisations += usize::from(r.method == TrackingMethod::Relocalisation);
+            s.keyframes_inserted += usize::from(r.keyframe);
+            sum.extraction_ms += r.timings.extraction_ms;
+            sum.stereo_ms += r.timings.stereo_ms;
+            sum.tracking_ms += r.timings.tracking_ms;
+            sum.mapping_ms += r.timings.mapping_ms;
+        }
+        let n = self.records.len().max(1) as f64;
+        s.mean_timings = FrameTimings {
+            extraction_ms: sum.extraction_ms / n,
+            stereo_ms: sum.stereo_ms / n,
+            tracking_ms: sum.tracking_ms / n,
+            mapping_ms: sum.mapping_ms / n,
+        };
+        Ok(s)
+    }
+}
