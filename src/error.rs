@@ -101,6 +101,10 @@ pub enum SlamError {
     /// The shared map's lock was poisoned by a panicking thread.
     #[error("the shared map's lock is poisoned (a thread panicked while holding it)")]
     PoisonedMap,
+    /// The keyframe database's lock was poisoned by a panicking thread
+    /// (loop detection and relocalisation share it).
+    #[error("the keyframe database's lock is poisoned (a thread panicked while holding it)")]
+    PoisonedKeyframeDatabase,
     /// A map invariant was broken after a local-mapping step (checked in
     /// debug builds and tests, see `LocalMapper::check_invariants`).
     #[error("map invariant broken after {stage}: {source}")]

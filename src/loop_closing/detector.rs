@@ -19,7 +19,7 @@
 //! so that every holder sees the same one.
 
 use std::collections::HashSet;
-use std::sync::{Arc, PoisonError, RwLock, RwLockReadGuard, RwLockWriteGuard};
+use std::sync::{Arc, RwLock, RwLockReadGuard, RwLockWriteGuard};
 
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
@@ -82,21 +82,25 @@ struct PendingLoop {
 /// fills it) and relocalisation (which queries it).
 pub type SharedKeyframeDatabase = Arc<RwLock<KeyframeDatabase<KeyFrameId>>>;
 
-/// Reads the shared database. A poisoned lock is taken over: every
-/// operation under it (insert, erase, query, clear) leaves the database
-/// consistent, and its users run on the system's thread, where a panic
-/// ends the run anyway.
+/// Reads the shared database. A poisoned lock (a thread panicked while
+/// writing it; in threaded mode loop detection and relocalisation run on
+/// different threads) is [`SlamError::PoisonedKeyframeDatabase`], as a
+/// poisoned map is [`SlamError::PoisonedMap`].
 pub(super) fn read_database(
     database: &SharedKeyframeDatabase,
-) -> RwLockReadGuard<'_, KeyframeDatabase<KeyFrameId>> {
-    database.read().unwrap_or_else(PoisonError::into_inner)
+) -> Result<RwLockReadGuard<'_, KeyframeDatabase<KeyFrameId>>, SlamError> {
+    database
+        .read()
+        .map_err(|_| SlamError::PoisonedKeyframeDatabase)
 }
 
 /// Writes the shared database (a poisoned lock as in [`read_database`]).
 pub(super) fn write_database(
     database: &SharedKeyframeDatabase,
-) -> RwLockWriteGuard<'_, KeyframeDatabase<KeyFrameId>> {
-    database.write().unwrap_or_else(PoisonError::into_inner)
+) -> Result<RwLockWriteGuard<'_, KeyframeDatabase<KeyFrameId>>, SlamError> {
+    database
+        .write()
+        .map_err(|_| SlamError::PoisonedKeyframeDatabase)
 }
 
 /// The detector's state: the database and a pending loop.
@@ -146,8 +150,8 @@ impl LoopDetector {
     }
 
     /// Keyframes in the database.
-    pub fn database_len(&self) -> usize {
-        read_database(&self.database).len()
+    pub fn database_len(&self) -> Result<usize, SlamError> {
+        Ok(read_database(&self.database)?.len())
     }
 
     /// The database, shared (for relocalisation, see
@@ -168,16 +172,20 @@ impl LoopDetector {
         let empty = KeyframeDatabase::new(self.descriptor.dim()).in_stage("keyframe database")?;
         self.pending = None;
         Ok(std::mem::replace(
-            &mut *write_database(&self.database),
+            &mut *write_database(&self.database)?,
             empty,
         ))
     }
 
     /// Replaces the database's entries in place (a merge made another map
     /// active) and forgets the pending loop.
-    pub fn replace_database(&mut self, database: KeyframeDatabase<KeyFrameId>) {
-        *write_database(&self.database) = database;
+    pub fn replace_database(
+        &mut self,
+        database: KeyframeDatabase<KeyFrameId>,
+    ) -> Result<(), SlamError> {
+        *write_database(&self.database)? = database;
         self.pending = None;
+        Ok(())
     }
 
     /// A database of every keyframe of `map` (a loaded map), in id order.
@@ -226,7 +234,7 @@ impl LoopDetector {
             group_size: self.thresholds.group_size,
             ..QueryOptions::default()
         };
-        Ok(read_database(&self.database)
+        Ok(read_database(&self.database)?
             .query(descriptor, exclude, |k| map.best_covisible(k, 10), &options)
             .in_stage("keyframe database query")?
             .into_iter()
@@ -235,8 +243,8 @@ impl LoopDetector {
     }
 
     /// Drops culled keyframes from the database.
-    fn forget_culled(&mut self, map: &Map) {
-        let mut database = write_database(&self.database);
+    fn forget_culled(&mut self, map: &Map) -> Result<(), SlamError> {
+        let mut database = write_database(&self.database)?;
         let gone: Vec<KeyFrameId> = database
             .keyframes()
             .filter(|k| map.keyframe(*k).is_err())
@@ -244,6 +252,7 @@ impl LoopDetector {
         for k in gone {
             database.erase(k);
         }
+        Ok(())
     }
 
     /// Looks for a loop at keyframe `kf` (see the module's docs) and adds
@@ -254,7 +263,7 @@ impl LoopDetector {
         kf: KeyFrameId,
         rig: &CameraRig,
     ) -> Result<DetectionOutcome, SlamError> {
-        self.forget_culled(map);
+        self.forget_culled(map)?;
         let mut outcome = DetectionOutcome::default();
         let Some(descriptor) = self.describe(map, kf)? else {
             return Ok(outcome);
@@ -264,7 +273,7 @@ impl LoopDetector {
         } else if map.keyframe_count() >= self.thresholds.min_keyframes {
             outcome.accepted = self.detect(map, kf, &descriptor, rig, &mut outcome.rejected)?;
         }
-        write_database(&self.database)
+        write_database(&self.database)?
             .insert(kf, &descriptor)
             .in_stage("keyframe database insert")?;
         outcome.descriptor = Some(descriptor);

@@ -12,6 +12,7 @@
 use std::collections::HashSet;
 use std::sync::Arc;
 
+use crate::error::SlamError;
 use crate::map::{KeyFrameId, Map};
 use crate::place::{GlobalDescriptor, QueryOptions};
 use crate::tracking::{Frame, RelocalisationCandidates};
@@ -70,9 +71,10 @@ impl DatabaseRelocaliser {
         self
     }
 
-    /// Keyframes in the database now.
-    pub fn database_len(&self) -> usize {
-        read_database(&self.database).len()
+    /// Keyframes in the database now; a poisoned lock is
+    /// [`SlamError::PoisonedKeyframeDatabase`].
+    pub fn database_len(&self) -> Result<usize, SlamError> {
+        Ok(read_database(&self.database)?.len())
     }
 
     /// The frame's global descriptor; `None` without float descriptors
@@ -107,8 +109,15 @@ impl RelocalisationCandidates for DatabaseRelocaliser {
     /// through loop detection, or a map begun before loop closing was on).
     fn candidates(&self, frame: &Frame, map: &Map) -> Option<Vec<KeyFrameId>> {
         float_rows(&frame.features.descriptors)?;
-        if self.database_len() == 0 {
-            return None;
+        match self.database_len() {
+            Ok(0) => return None,
+            Ok(_) => {}
+            Err(e) => {
+                // Loop detection, which shares the lock, reports it as the
+                // run's error; here the newest keyframes are scanned instead.
+                tracing::error!(frame = frame.index, error = %e, "relocalisation: keyframe database unusable");
+                return None;
+            }
         }
         let Some(descriptor) = self.describe(frame) else {
             return Some(Vec::new());
@@ -118,7 +127,14 @@ impl RelocalisationCandidates for DatabaseRelocaliser {
             group_size: RELOCALISATION_GROUP_SIZE,
             ..QueryOptions::default()
         };
-        let found = read_database(&self.database).query(
+        let Ok(database) = read_database(&self.database) else {
+            tracing::error!(
+                frame = frame.index,
+                "relocalisation: the keyframe database's lock is poisoned"
+            );
+            return None;
+        };
+        let found = database.query(
             &descriptor,
             &HashSet::new(),
             |k| map.best_covisible(k, RELOCALISATION_GROUP_SIZE),
@@ -176,19 +192,21 @@ mod tests {
             .unwrap_or_else(|e| panic!("{e}"));
         let relocaliser = DatabaseRelocaliser::new(Arc::new(Fixed), detector.shared_database());
         crate::loop_closing::detector::write_database(&detector.shared_database())
+            .unwrap_or_else(|e| panic!("{e}"))
             .insert(KeyFrameId(3), &[0.5; 4])
             .unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(relocaliser.database_len(), 1);
+        assert_eq!(relocaliser.database_len().ok(), Some(1));
         detector.clear().unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(
-            relocaliser.database_len(),
-            0,
+            relocaliser.database_len().ok(),
+            Some(0),
             "the relocaliser holds a stale database"
         );
         crate::loop_closing::detector::write_database(&detector.shared_database())
+            .unwrap_or_else(|e| panic!("{e}"))
             .insert(KeyFrameId(0), &[0.5; 4])
             .unwrap_or_else(|e| panic!("{e}"));
-        assert_eq!(relocaliser.database_len(), 1);
+        assert_eq!(relocaliser.database_len().ok(), Some(1));
     }
 
     #[test]

@@ -164,7 +164,7 @@ impl LoopClosingStage {
         for (index, map) in maps {
             let database = self.detector.database_of(map)?;
             if *index == active {
-                self.detector.replace_database(database);
+                self.detector.replace_database(database)?;
             } else {
                 self.merger.archive(*index, database);
             }
@@ -281,7 +281,7 @@ impl LoopClosingStage {
         database
             .absorb(self.detector.take_database()?)
             .in_stage("keyframe database merge")?;
-        self.detector.replace_database(database);
+        self.detector.replace_database(database)?;
         let (transform_m, transform_deg) =
             pose_difference(&Se3::identity(), &accepted.t_target_active);
         let record = MergeRecord {
