@@ -28,6 +28,7 @@ use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::Se3;
 use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 
+use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::{
     check_candidate, confirm_with, CheckedCandidate, LoopStage, RejectedCandidate,
@@ -65,7 +66,7 @@ pub struct DetectionOutcome {
     pub descriptor: Option<Vec<f32>>,
 }
 
-/// A verified loop waiting for confirmations.
+/// A verified loop waiting for confirmations (in a [`CandidateStreak`]).
 #[derive(Debug, Clone)]
 struct PendingLoop {
     candidate: KeyFrameId,
@@ -74,8 +75,6 @@ struct PendingLoop {
     group: Vec<KeyFrameId>,
     group_points: Vec<MapPointId>,
     correction: Se3,
-    confirmations: usize,
-    misses: usize,
 }
 
 /// The keyframe database of one map, shared by loop detection (which
@@ -108,7 +107,7 @@ pub struct LoopDetector {
     descriptor: Arc<dyn GlobalDescriptor>,
     database: SharedKeyframeDatabase,
     thresholds: LoopThresholds,
-    pending: Option<PendingLoop>,
+    pending: Option<CandidateStreak<PendingLoop>>,
 }
 
 impl std::fmt::Debug for LoopDetector {
@@ -334,16 +333,17 @@ impl LoopDetector {
                     confirmations,
                 }));
             }
-            self.pending = Some(PendingLoop {
-                candidate,
-                score,
-                query: kf,
-                group: verified.group,
-                group_points,
-                correction,
+            self.pending = Some(CandidateStreak::start(
+                PendingLoop {
+                    candidate,
+                    score,
+                    query: kf,
+                    group: verified.group,
+                    group_points,
+                    correction,
+                },
                 confirmations,
-                misses: 0,
-            });
+            ));
             return Ok(None);
         }
         Ok(None)
@@ -357,13 +357,15 @@ impl LoopDetector {
         rejected: &mut Vec<RejectedCandidate>,
     ) -> Result<Option<AcceptedLoop>, SlamError> {
         let th = self.thresholds;
-        let Some(mut pending) = self.pending.take() else {
+        let Some(mut streak) = self.pending.take() else {
             return Ok(None);
         };
+        let pending = &streak.subject;
         let c = confirm_with(map, kf, &pending.correction, &pending.group_points, rig)?;
         if c.inliers >= th.min_confirmation_inliers {
-            pending.confirmations += 1;
-            if pending.confirmations >= th.confirmations {
+            let confirmations = streak.confirm(1);
+            if confirmations >= th.confirmations {
+                let pending = streak.subject;
                 return Ok(Some(AcceptedLoop {
                     query: kf,
                     candidate: pending.candidate,
@@ -371,23 +373,21 @@ impl LoopDetector {
                     pose_cw: c.pose_cw,
                     matches: c.matches,
                     inliers: c.inliers,
-                    confirmations: pending.confirmations,
+                    confirmations,
                 }));
             }
-        } else {
-            pending.misses += 1;
-            if pending.misses >= th.max_misses {
-                rejected.push(RejectedCandidate {
-                    query: pending.query,
-                    candidate: pending.candidate,
-                    score: pending.score,
-                    stage: LoopStage::Confirmation,
-                    count: pending.confirmations,
-                });
-                return Ok(None);
-            }
+        } else if streak.miss(th.max_misses) {
+            let pending = &streak.subject;
+            rejected.push(RejectedCandidate {
+                query: pending.query,
+                candidate: pending.candidate,
+                score: pending.score,
+                stage: LoopStage::Confirmation,
+                count: streak.confirmations(),
+            });
+            return Ok(None);
         }
-        self.pending = Some(pending);
+        self.pending = Some(streak);
         Ok(None)
     }
 }

@@ -19,9 +19,9 @@ use std::sync::atomic::AtomicBool;
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
-use crate::mapping::keyframe_observation;
+use crate::mapping::build_map_bundle;
 use crate::optim::local_ba::{
-    local_bundle_adjustment_abortable, BaObservation, BundleProblem, LocalBaConfig, Termination,
+    local_bundle_adjustment_abortable, BundleProblem, LocalBaConfig, Termination,
 };
 use crate::optim::{LieGroup, Se3};
 
@@ -73,51 +73,16 @@ impl SolvedGlobalBa {
 /// Snapshot: the whole map as a BA problem (read only). `None` when the
 /// map has fewer than two keyframes or no observation.
 pub fn snapshot_global_ba(map: &Map, rig: &CameraRig) -> Option<GlobalBaSnapshot> {
-    let keyframes: Vec<KeyFrameId> = map.keyframes().map(|k| k.id()).collect();
-    if keyframes.len() < 2 {
+    if map.keyframe_count() < 2 {
         return None;
     }
-    let pose_index: BTreeMap<KeyFrameId, usize> =
-        keyframes.iter().enumerate().map(|(i, k)| (*k, i)).collect();
-    let poses: Vec<Se3> = map.keyframes().map(|k| k.pose_cw()).collect();
-    let mut fixed = vec![false; poses.len()];
-    fixed[0] = true;
-    let mut points = Vec::new();
-    let mut positions = Vec::new();
-    let mut observations = Vec::new();
-    for point in map.map_points() {
-        let start = observations.len();
-        for (kf, index) in point.observations() {
-            let (Some(&pose), Some(obs)) =
-                (pose_index.get(kf), keyframe_observation(map, *kf, *index))
-            else {
-                continue;
-            };
-            observations.push(BaObservation {
-                pose,
-                point: points.len(),
-                obs,
-            });
-        }
-        if observations.len() == start {
-            continue;
-        }
-        points.push(point.id());
-        positions.push(point.position);
-    }
-    if observations.is_empty() {
-        return None;
-    }
+    let keyframes = map.keyframes().enumerate().map(|(i, k)| (k.id(), i == 0));
+    let points: Vec<MapPointId> = map.map_points().map(|p| p.id()).collect();
+    let bundle = build_map_bundle(map, rig, keyframes, points)?;
     Some(GlobalBaSnapshot {
-        problem: BundleProblem {
-            camera: rig.camera,
-            poses,
-            fixed,
-            points: positions,
-            observations,
-        },
-        keyframes,
-        points,
+        problem: bundle.problem,
+        keyframes: bundle.keyframes,
+        points: bundle.points,
     })
 }
 

@@ -24,6 +24,7 @@ use crate::optim::{LieGroup, Se3};
 use crate::place::{KeyframeDatabase, QueryOptions};
 
 use super::detector::AcceptedLoop;
+use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::RejectedCandidate;
 use super::verify::{check_candidate, CheckedCandidate};
@@ -50,19 +51,13 @@ pub struct MergeOutcome {
     pub rejected: Vec<(usize, RejectedCandidate)>,
 }
 
-/// Verified keyframes of one target map, waiting for enough of them.
-#[derive(Debug, Clone, Copy)]
-struct Streak {
-    target: usize,
-    confirmations: usize,
-    misses: usize,
-}
-
 /// The archived databases and the confirmation streak.
 pub struct MergeDetector {
     thresholds: LoopThresholds,
     archived: BTreeMap<usize, KeyframeDatabase<KeyFrameId>>,
-    streak: Option<Streak>,
+    /// Verified keyframes of one target map (its atlas tag), waiting for
+    /// enough of them.
+    streak: Option<CandidateStreak<usize>>,
 }
 
 impl std::fmt::Debug for MergeDetector {
@@ -167,8 +162,9 @@ impl MergeDetector {
             } = checked;
             let earlier = self
                 .streak
-                .filter(|s| s.target == tag)
-                .map_or(0, |s| s.confirmations);
+                .as_ref()
+                .filter(|s| s.subject == tag)
+                .map_or(0, CandidateStreak::confirmations);
             let total = earlier + confirmations;
             tracing::debug!(
                 keyframe = kf.0,
@@ -180,11 +176,7 @@ impl MergeDetector {
                 "merge verified"
             );
             if total < th.confirmations {
-                self.streak = Some(Streak {
-                    target: tag,
-                    confirmations: total,
-                    misses: 0,
-                });
+                self.streak = Some(CandidateStreak::start(tag, total));
                 return Ok(outcome);
             }
             self.streak = None;
@@ -203,11 +195,8 @@ impl MergeDetector {
             });
             return Ok(outcome);
         }
-        if let Some(streak) = self.streak.as_mut() {
-            streak.misses += 1;
-            if streak.misses >= th.max_misses {
-                self.streak = None;
-            }
+        if self.streak.as_mut().is_some_and(|s| s.miss(th.max_misses)) {
+            self.streak = None;
         }
         Ok(outcome)
     }

@@ -28,6 +28,7 @@ mod essential_graph;
 mod global_ba;
 mod merge;
 mod relocalisation;
+mod streak;
 mod thresholds;
 mod verify;
 

@@ -42,6 +42,7 @@ mod ids;
 mod invariants;
 mod keyframe;
 mod map_point;
+mod observation;
 mod parts;
 #[cfg(test)]
 mod tests_support;
@@ -60,6 +61,7 @@ pub use ids::{KeyFrameId, MapPointId};
 pub use invariants::InvariantViolation;
 pub use keyframe::{FrameMeasurements, KeyFrame, StereoMeasurement};
 pub use map_point::MapPoint;
+pub use observation::keypoint_observation;
 pub use parts::{
     CulledParts, GraphParts, KeyFrameParts, MapParts, MapPointParts, PoseParts, ScaleParts,
 };

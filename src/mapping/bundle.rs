@@ -9,9 +9,10 @@ use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::local_ba::{
-    local_bundle_adjustment_abortable, BaObservation, BundleProblem, LocalBaConfig, Termination,
+    local_bundle_adjustment_abortable, BundleProblem, LocalBaConfig, Termination,
 };
-use crate::optim::reprojection::Observation;
+
+use super::bundle_problem::build_map_bundle;
 
 /// Local keyframes at most (beyond the new one).
 const MAX_LOCAL_KEYFRAMES: usize = 20;
@@ -31,24 +32,6 @@ pub struct BundleSummary {
     pub outliers_erased: usize,
     /// Whether tracking's new keyframe aborted it early.
     pub aborted: bool,
-}
-
-/// A keyframe's measurement `index` as a BA observation (stereo when it
-/// has a depth), weighted by its octave's information.
-pub(crate) fn keyframe_observation(map: &Map, kf: KeyFrameId, index: usize) -> Option<Observation> {
-    let kf = map.keyframe(kf).ok()?;
-    let m = &kf.measurements;
-    let kp = m.keypoints.get(index)?;
-    let information = f64::from(
-        *m.scales
-            .inv_level_sigma2
-            .get(usize::try_from(kp.octave).ok()?)?,
-    );
-    let (u, v) = (f64::from(kp.x), f64::from(kp.y));
-    Some(match m.stereo.get(index).copied().flatten() {
-        Some(s) if s.depth > 0.0 => Observation::stereo(u, v, f64::from(s.right_u), information),
-        _ => Observation::mono(u, v, information),
-    })
 }
 
 /// A local BA problem built from a map snapshot, with the ids needed to
@@ -97,57 +80,26 @@ pub(crate) fn snapshot_bundle(
             }
         }
     }
-    let mut pose_index: BTreeMap<KeyFrameId, usize> = BTreeMap::new();
-    let mut poses = Vec::new();
-    let mut fixed = Vec::new();
-    for kf in local.iter().chain(fixed_set.iter()) {
-        let Ok(k) = map.keyframe(*kf) else { continue };
-        pose_index.insert(*kf, poses.len());
-        poses.push(k.pose_cw());
-        fixed.push(!local_set.contains(kf) || Some(*kf) == first);
-    }
-    if fixed.iter().all(|f| !f) {
+    // The new keyframe and its covisible ones are free (the map's first
+    // keyframe excepted); the other observers of their points are fixed.
+    let mut chosen: Vec<(KeyFrameId, bool)> = local
+        .iter()
+        .map(|kf| (*kf, Some(*kf) == first))
+        .chain(fixed_set.iter().map(|kf| (*kf, true)))
+        .filter(|(kf, _)| map.keyframe(*kf).is_ok())
+        .collect();
+    if chosen.iter().all(|(_, f)| !f) {
         // No gauge from the map: hold the oldest local keyframe.
-        if let Some(oldest) = local.iter().min().and_then(|k| pose_index.get(k)) {
-            fixed[*oldest] = true;
+        if let Some(oldest) = chosen.iter_mut().min_by_key(|(kf, _)| *kf) {
+            oldest.1 = true;
         }
     }
-    let mut observations = Vec::new();
-    let mut links = Vec::new();
-    let mut positions = Vec::with_capacity(points.len());
-    for (pi, p) in points.iter().enumerate() {
-        let Ok(point) = map.map_point(*p) else {
-            return None;
-        };
-        positions.push(point.position);
-        for (kf, index) in point.observations() {
-            let (Some(&pose), Some(obs)) =
-                (pose_index.get(kf), keyframe_observation(map, *kf, *index))
-            else {
-                continue;
-            };
-            observations.push(BaObservation {
-                pose,
-                point: pi,
-                obs,
-            });
-            links.push((*p, *kf));
-        }
-    }
-    if observations.is_empty() {
-        return None;
-    }
+    let bundle = build_map_bundle(map, rig, chosen, points)?;
     Some(BundleSnapshot {
-        problem: BundleProblem {
-            camera: rig.camera,
-            poses,
-            fixed,
-            points: positions,
-            observations,
-        },
-        pose_index,
-        points,
-        links,
+        problem: bundle.problem,
+        pose_index: bundle.pose_index,
+        points: bundle.points,
+        links: bundle.links,
         local_keyframes: local_set.len(),
         fixed_keyframes: fixed_set.len(),
     })

@@ -7,7 +7,6 @@ use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::matching::KeypointGrid;
-use crate::optim::reprojection::{CHI2_MONO_95, CHI2_STEREO_95};
 use crate::optim::LieGroup;
 
 /// Search window at octave 0, pixels (ORB-SLAM3's `th = 3`).
@@ -51,23 +50,10 @@ fn fuse_candidate(
         radius,
         Some((octave - 1, octave)),
     ) {
-        let kp = &kf.measurements.keypoints[i];
-        let sigma2 = f64::from(
-            scales
-                .level_sigma2
-                .get(kp.octave.max(0) as usize)
-                .copied()
-                .unwrap_or(1.0),
-        );
-        let mut err2 =
-            (predicted.x - f64::from(kp.x)).powi(2) + (predicted.y - f64::from(kp.y)).powi(2);
-        let ok = match kf.measurements.stereo[i] {
-            Some(s) if s.depth > 0.0 => {
-                err2 += (predicted.z - f64::from(s.right_u)).powi(2);
-                err2 <= CHI2_STEREO_95 * sigma2
-            }
-            _ => err2 <= CHI2_MONO_95 * sigma2,
-        };
+        let ok = kf
+            .measurements
+            .observation(i)
+            .is_some_and(|obs| obs.accepts_prediction(&predicted));
         if !ok {
             continue;
         }

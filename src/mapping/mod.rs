@@ -11,6 +11,7 @@
 //! ([`crate::system::SlamSystem`]) calls it inline or on its thread.
 
 mod bundle;
+mod bundle_problem;
 mod fuse;
 mod triangulate;
 
@@ -18,8 +19,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, RwLockReadGuard, RwLockWriteGuard};
 use std::time::Instant;
 
-pub(crate) use bundle::keyframe_observation;
 pub use bundle::BundleSummary;
+pub(crate) use bundle_problem::build_map_bundle;
 pub(crate) use fuse::{apply_fusion_candidates, plan_fusion_into};
 
 use crate::camera::CameraRig;

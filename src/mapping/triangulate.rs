@@ -10,7 +10,6 @@ use crate::features::DescriptorSet;
 use crate::map::{FrameMeasurements, KeyFrameId, Map, MapPointId, PointDescriptor};
 use crate::matching::BestTwo;
 use crate::optim::lie::hat;
-use crate::optim::reprojection::{CHI2_MONO_95, CHI2_STEREO_95};
 use crate::optim::{LieGroup, Se3};
 
 /// Neighbours triangulated against (ORB-SLAM3: 10 for stereo).
@@ -170,23 +169,19 @@ fn triangulate(p1: &Se3, x1: (f64, f64), p2: &Se3, x2: (f64, f64)) -> Option<Vec
     Some(Vector3::new(x[0] / x[3], x[1] / x[3], x[2] / x[3]))
 }
 
-/// The reprojection test of a new point in one view (χ² at 95 %).
+/// The reprojection test of a new point in one view (χ² at 95 %, ORB-SLAM3's
+/// `CreateNewMapPoints`): the keypoint counts as the one measurement policy
+/// says ([`FrameMeasurements::observation`]: stereo with a depth, else
+/// monocular), with that observation's threshold and weight.
 fn reprojects_well(view: &View, i: usize, x: &Vector3<f64>, rig: &CameraRig) -> bool {
     let pc = view.pose.transform_point(x);
     if pc.z <= 0.0 {
         return false;
     }
     let predicted = rig.camera.project_stereo(&pc);
-    let (u, v) = view.pixel(i);
-    let mut err2 = (predicted.x - u).powi(2) + (predicted.y - v).powi(2);
-    let sigma2 = view.sigma2(i);
-    match view.measurements.stereo[i] {
-        Some(s) if s.depth > 0.0 => {
-            err2 += (predicted.z - f64::from(s.right_u)).powi(2);
-            err2 <= CHI2_STEREO_95 * sigma2
-        }
-        _ => err2 <= CHI2_MONO_95 * sigma2,
-    }
+    view.measurements
+        .observation(i)
+        .is_some_and(|obs| obs.accepts_prediction(&predicted))
 }
 
 /// The world point for a match, or `None` when a check fails.

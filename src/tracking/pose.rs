@@ -1,6 +1,6 @@
 //! Pose-only refinement of a frame against its matched map points.
 
-use crate::map::Map;
+use crate::map::{keypoint_observation, Map};
 use crate::optim::pose_only::{optimise_pose, PoseCorrespondence, PoseOnlyConfig};
 use crate::optim::reprojection::Observation;
 
@@ -8,16 +8,14 @@ use super::frame::Frame;
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 
-/// The observation keypoint `i` of `frame` makes (stereo when it has a depth).
+/// The observation keypoint `i` of `frame` makes (the one policy:
+/// [`keypoint_observation`]).
 pub(crate) fn frame_observation(frame: &Frame, i: usize) -> Option<Observation> {
-    let kp = frame.features.keypoints.get(i)?;
-    let octave = usize::try_from(kp.octave).ok()?;
-    let information = f64::from(*frame.scales.inv_level_sigma2.get(octave)?);
-    let (u, v) = (f64::from(kp.x), f64::from(kp.y));
-    Some(match frame.stereo.get(i).copied().flatten() {
-        Some(s) if s.depth > 0.0 => Observation::stereo(u, v, f64::from(s.right_u), information),
-        _ => Observation::mono(u, v, information),
-    })
+    keypoint_observation(
+        frame.features.keypoints.get(i)?,
+        frame.stereo.get(i).copied().flatten(),
+        &frame.scales,
+    )
 }
 
 /// Refines `frame.pose_cw` from its matches (ORB-SLAM3's `PoseOptimization`)

@@ -64,6 +64,25 @@ impl Observation {
         self.chi2_threshold().sqrt()
     }
 
+    /// `information · |residual|²` against a predicted stereo projection
+    /// `(u, v, u_right)` ([`super::PinholeStereo::project_stereo`]): all
+    /// three components for a stereo observation, `(u, v)` for a monocular
+    /// one.
+    pub fn chi2_of_prediction(&self, predicted: &Vector3<f64>) -> f64 {
+        let err2 = match &self.measurement {
+            Measurement::Mono(m) => (predicted.x - m.x).powi(2) + (predicted.y - m.y).powi(2),
+            Measurement::Stereo(m) => (predicted - m).norm_squared(),
+        };
+        self.information * err2
+    }
+
+    /// Whether a predicted stereo projection is within this observation's
+    /// 95 % χ² ([`Observation::chi2_threshold`]): ORB-SLAM3's test of a new
+    /// point (`CreateNewMapPoints`) and of a fusion (`ORBmatcher::Fuse`).
+    pub fn accepts_prediction(&self, predicted: &Vector3<f64>) -> bool {
+        self.chi2_of_prediction(predicted) <= self.chi2_threshold()
+    }
+
     /// True when the measurement is finite and the information positive and finite.
     pub fn is_valid(&self) -> bool {
         let finite = match &self.measurement {
