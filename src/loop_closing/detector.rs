@@ -66,6 +66,29 @@ pub struct DetectionOutcome {
     pub descriptor: Option<Vec<f32>>,
 }
 
+/// What [`LoopDetector::plan`] says to do with a keyframe next.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DetectionPlan {
+    /// Nothing: the map has too few keyframes for a loop.
+    Nothing,
+    /// Confirm the pending loop ([`LoopDetector::confirm_pending`]).
+    Confirm,
+    /// Check these candidates, best first ([`LoopDetector::verify_candidate`]),
+    /// until one is verified.
+    Candidates(Vec<(KeyFrameId, f32)>),
+}
+
+/// What checking one candidate gave.
+#[derive(Debug, Clone)]
+pub enum CandidateStep {
+    /// Rejected: go on with the next candidate.
+    Rejected,
+    /// Verified, waiting for confirmations: stop checking candidates.
+    Pending,
+    /// Verified with enough confirmations: correct it.
+    Accepted(AcceptedLoop),
+}
+
 /// A verified loop waiting for confirmations (in a [`CandidateStreak`]).
 #[derive(Debug, Clone)]
 struct PendingLoop {
@@ -255,28 +278,76 @@ impl LoopDetector {
     }
 
     /// Looks for a loop at keyframe `kf` (see the module's docs) and adds
-    /// it to the database.
+    /// it to the database: [`Self::plan`], then [`Self::confirm_pending`] or
+    /// [`Self::verify_candidate`] for each candidate until one is verified,
+    /// then [`Self::record`], all on one map. A caller that shares the map
+    /// with other threads runs the same steps with the map's lock released
+    /// between them (the system's loop-closing stage does).
     pub fn process(
         &mut self,
         map: &Map,
         kf: KeyFrameId,
         rig: &CameraRig,
     ) -> Result<DetectionOutcome, SlamError> {
-        self.forget_culled(map)?;
         let mut outcome = DetectionOutcome::default();
-        let Some(descriptor) = self.describe(map, kf)? else {
+        let Some((descriptor, plan)) = self.plan(map, kf)? else {
             return Ok(outcome);
         };
-        if self.pending.is_some() {
-            outcome.accepted = self.confirm_pending(map, kf, rig, &mut outcome.rejected)?;
-        } else if map.keyframe_count() >= self.thresholds.min_keyframes {
-            outcome.accepted = self.detect(map, kf, &descriptor, rig, &mut outcome.rejected)?;
+        match plan {
+            DetectionPlan::Confirm => {
+                outcome.accepted = self.confirm_pending(map, kf, rig, &mut outcome.rejected)?;
+            }
+            DetectionPlan::Candidates(candidates) => {
+                for candidate in candidates {
+                    match self.verify_candidate(map, kf, candidate, rig, &mut outcome.rejected)? {
+                        CandidateStep::Rejected => continue,
+                        CandidateStep::Pending => break,
+                        CandidateStep::Accepted(accepted) => {
+                            outcome.accepted = Some(accepted);
+                            break;
+                        }
+                    }
+                }
+            }
+            DetectionPlan::Nothing => {}
         }
-        write_database(&self.database)?
-            .insert(kf, &descriptor)
-            .in_stage("keyframe database insert")?;
+        self.record(kf, &descriptor)?;
         outcome.descriptor = Some(descriptor);
         Ok(outcome)
+    }
+
+    /// The first step for keyframe `kf` (short: culled keyframes leave the
+    /// database, the keyframe's global descriptor, the database query):
+    /// its descriptor and what to do next. `None` for a keyframe without a
+    /// global descriptor (binary descriptors, or culled).
+    pub fn plan(
+        &mut self,
+        map: &Map,
+        kf: KeyFrameId,
+    ) -> Result<Option<(Vec<f32>, DetectionPlan)>, SlamError> {
+        self.forget_culled(map)?;
+        let Some(descriptor) = self.describe(map, kf)? else {
+            return Ok(None);
+        };
+        let plan = if self.pending.is_some() {
+            DetectionPlan::Confirm
+        } else if map.keyframe_count() >= self.thresholds.min_keyframes {
+            let exclude = Self::neighbourhood(map, kf);
+            let candidates =
+                self.candidates(map, &descriptor, &exclude, self.thresholds.candidates)?;
+            DetectionPlan::Candidates(candidates)
+        } else {
+            DetectionPlan::Nothing
+        };
+        Ok(Some((descriptor, plan)))
+    }
+
+    /// The last step: keyframe `kf` enters the database with its global
+    /// descriptor.
+    pub fn record(&mut self, kf: KeyFrameId, descriptor: &[f32]) -> Result<(), SlamError> {
+        write_database(&self.database)?
+            .insert(kf, descriptor)
+            .in_stage("keyframe database insert")
     }
 
     /// The keyframes a query from `kf` must not return: itself, its
@@ -290,66 +361,72 @@ impl LoopDetector {
         exclude
     }
 
-    fn detect(
+    /// One candidate of [`DetectionPlan::Candidates`] (ORB-SLAM3's
+    /// `DetectCommonRegionsFromBoW` for one candidate): the multi-stage
+    /// check, then accepted (enough confirmations at once), pending (a
+    /// streak starts; the other candidates are not checked) or rejected.
+    /// A query or candidate culled since the plan is rejected quietly.
+    pub fn verify_candidate(
         &mut self,
         map: &Map,
         kf: KeyFrameId,
-        descriptor: &[f32],
+        (candidate, score): (KeyFrameId, f32),
         rig: &CameraRig,
         rejected: &mut Vec<RejectedCandidate>,
-    ) -> Result<Option<AcceptedLoop>, SlamError> {
+    ) -> Result<CandidateStep, SlamError> {
         let th = self.thresholds;
-        let exclude = Self::neighbourhood(map, kf);
-        let candidates = self.candidates(map, descriptor, &exclude, th.candidates)?;
-        for (candidate, score) in candidates {
-            let checked = match check_candidate(map, kf, map, (candidate, score), rig, &th)? {
-                Ok(checked) => checked,
-                Err(record) => {
-                    rejected.extend(record);
-                    continue;
-                }
-            };
-            let CheckedCandidate {
-                verified,
-                correction,
-                group_points,
-                confirmations,
-            } = checked;
-            tracing::debug!(
-                keyframe = kf.0,
-                candidate = candidate.0,
-                inliers = verified.inliers,
-                confirmations,
-                "loop verified"
-            );
-            if confirmations >= th.confirmations {
-                return Ok(Some(AcceptedLoop {
-                    query: kf,
-                    candidate,
-                    group: verified.group,
-                    pose_cw: verified.pose_cw,
-                    matches: verified.matches,
-                    inliers: verified.inliers,
-                    confirmations,
-                }));
-            }
-            self.pending = Some(CandidateStreak::start(
-                PendingLoop {
-                    candidate,
-                    score,
-                    query: kf,
-                    group: verified.group,
-                    group_points,
-                    correction,
-                },
-                confirmations,
-            ));
-            return Ok(None);
+        if map.keyframe(kf).is_err() || map.keyframe(candidate).is_err() {
+            return Ok(CandidateStep::Rejected);
         }
-        Ok(None)
+        let checked = match check_candidate(map, kf, map, (candidate, score), rig, &th)? {
+            Ok(checked) => checked,
+            Err(record) => {
+                rejected.extend(record);
+                return Ok(CandidateStep::Rejected);
+            }
+        };
+        let CheckedCandidate {
+            verified,
+            correction,
+            group_points,
+            confirmations,
+        } = checked;
+        tracing::debug!(
+            keyframe = kf.0,
+            candidate = candidate.0,
+            inliers = verified.inliers,
+            confirmations,
+            "loop verified"
+        );
+        if confirmations >= th.confirmations {
+            return Ok(CandidateStep::Accepted(AcceptedLoop {
+                query: kf,
+                candidate,
+                group: verified.group,
+                pose_cw: verified.pose_cw,
+                matches: verified.matches,
+                inliers: verified.inliers,
+                confirmations,
+            }));
+        }
+        self.pending = Some(CandidateStreak::start(
+            PendingLoop {
+                candidate,
+                score,
+                query: kf,
+                group: verified.group,
+                group_points,
+                correction,
+            },
+            confirmations,
+        ));
+        Ok(CandidateStep::Pending)
     }
 
-    fn confirm_pending(
+    /// The [`DetectionPlan::Confirm`] step: keyframe `kf` confirms the
+    /// pending loop or misses it (ORB-SLAM3's
+    /// `DetectAndReffineSim3FromLastKF`).
+    pub fn confirm_pending(
         &mut self,
         map: &Map,
         kf: KeyFrameId,

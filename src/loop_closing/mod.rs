@@ -33,7 +33,10 @@ mod thresholds;
 mod verify;
 
 pub use correct::{correct_loop, pose_difference, LoopCorrection};
-pub use detector::{AcceptedLoop, DetectionOutcome, LoopDetector, SharedKeyframeDatabase};
+pub use detector::{
+    AcceptedLoop, CandidateStep, DetectionOutcome, DetectionPlan, LoopDetector,
+    SharedKeyframeDatabase,
+};
 pub use essential_graph::{
     build_essential_graph, optimise_essential_graph, EssentialGraph, EssentialGraphInput,
     EssentialGraphOutcome, GraphPose, MIN_ESSENTIAL_WEIGHT,

@@ -1,6 +1,7 @@
-//! Local bundle adjustment over a keyframe and its covisible neighbours,
-//! with the other keyframes observing the points held fixed, in three
-//! steps: snapshot (read lock), solve (no lock), apply (write lock).
+//! Local bundle adjustment over a keyframe and all its covisible
+//! neighbours, with every other keyframe observing their points held fixed
+//! (ORB-SLAM3's window), in three steps: snapshot (read lock), solve (no
+//! lock), apply (write lock).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::sync::atomic::AtomicBool;
@@ -13,11 +14,6 @@ use crate::optim::local_ba::{
 };
 
 use super::bundle_problem::build_map_bundle;
-
-/// Local keyframes at most (beyond the new one).
-const MAX_LOCAL_KEYFRAMES: usize = 20;
-/// Fixed keyframes at most.
-const MAX_FIXED_KEYFRAMES: usize = 20;
 
 /// What one local BA did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
@@ -50,6 +46,13 @@ pub(crate) struct BundleSnapshot {
 
 /// Snapshot: builds the local BA problem around `keyframe` (read only;
 /// the problem is a detached copy). `None` when there is nothing to optimise.
+///
+/// The window is ORB-SLAM3's (`Optimizer::LocalBundleAdjustment`): the new
+/// keyframe and every keyframe covisible with it (its covisibility edges:
+/// at least [`crate::map::COVISIBILITY_THRESHOLD`] shared points) are
+/// optimised, the map's first keyframe excepted; every other keyframe that
+/// observes one of their points is held fixed, so every observation of
+/// those points enters the problem.
 pub(crate) fn snapshot_bundle(
     map: &Map,
     keyframe: KeyFrameId,
@@ -57,7 +60,7 @@ pub(crate) fn snapshot_bundle(
 ) -> Option<BundleSnapshot> {
     let first = map.keyframes().next().map(|k| k.id());
     let mut local = vec![keyframe];
-    local.extend(map.best_covisible(keyframe, MAX_LOCAL_KEYFRAMES));
+    local.extend(map.best_covisible(keyframe, usize::MAX));
     let local_set: BTreeSet<KeyFrameId> = local.iter().copied().collect();
     let mut points: Vec<MapPointId> = Vec::new();
     let mut seen = BTreeSet::new();
@@ -74,11 +77,12 @@ pub(crate) fn snapshot_bundle(
         let Ok(point) = map.map_point(*p) else {
             continue;
         };
-        for kf in point.observations().keys() {
-            if !local_set.contains(kf) && fixed_set.len() < MAX_FIXED_KEYFRAMES {
-                fixed_set.insert(*kf);
-            }
-        }
+        fixed_set.extend(
+            point
+                .observations()
+                .keys()
+                .filter(|kf| !local_set.contains(kf)),
+        );
     }
     // The new keyframe and its covisible ones are free (the map's first
     // keyframe excepted); the other observers of their points are fixed.
