@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, RwLockReadGuard, RwLockWriteGuard};
 use std::time::Instant;
 
-pub use bundle::BundleSummary;
+pub use bundle::{BundleSummary, MAX_FIXED_KEYFRAMES, MAX_LOCAL_KEYFRAMES};
 pub(crate) use bundle_problem::build_map_bundle;
 pub(crate) use fuse::{apply_fusion_candidates, plan_fusion_into};
 
