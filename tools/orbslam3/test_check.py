@@ -47,7 +47,7 @@ class FloatAteBounds(unittest.TestCase):
         self.assertEqual(failures, ["float mode's ATE SE3 up to 0.1300 m > 0.12 m"])
 
     def test_the_default_sequence_has_no_ratio_bound_unless_asked(self):
-        # KITTI 06's float/ORB ratio is 1.4-1.7; 2.6 passes the absolute bound alone.
+        # KITTI 06's float/ORB ratio is 1.4-1.8; 2.6 passes the absolute bound alone.
         self.assertEqual(check.float_ate_failures(modes([0.04], [0.104]), args(DEFAULT)), [])
         self.assertEqual(len(check.float_ate_failures(modes([0.04], [0.104]), args(DEFAULT, ratio=2.0))), 1)
 
