@@ -188,6 +188,17 @@ impl<T> MapContext<T> for Result<T, opencv::Error> {
     }
 }
 
+impl SlamError {
+    /// [`SlamError::Thread`] for a thread `name` that panicked with
+    /// `payload` (the panic's message kept).
+    pub fn thread_panicked(name: &'static str, payload: &(dyn std::any::Any + Send)) -> Self {
+        SlamError::Thread {
+            name,
+            reason: format!("it panicked: {}", panic_message(payload)),
+        }
+    }
+}
+
 impl From<crate::camera::InvalidCamera> for SlamError {
     fn from(e: crate::camera::InvalidCamera) -> Self {
         SlamError::InvalidCamera { reason: e.reason }

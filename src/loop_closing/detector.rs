@@ -31,7 +31,7 @@ use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::{
-    check_candidate, confirm_with, CheckedCandidate, LoopStage, RejectedCandidate,
+    check_candidate, confirm_with, CheckedCandidate, LoopStage, RejectedCandidate, VerifiedLoop,
 };
 
 /// A loop the detector accepted: the query keyframe's pose in the loop's
@@ -52,6 +52,21 @@ pub struct AcceptedLoop {
     pub inliers: usize,
     /// Keyframes that agreed, the detecting one included.
     pub confirmations: usize,
+}
+
+impl AcceptedLoop {
+    /// The loop `verified` for keyframe `query`, with `confirmations`.
+    pub fn from_verified(query: KeyFrameId, verified: VerifiedLoop, confirmations: usize) -> Self {
+        Self {
+            query,
+            candidate: verified.candidate,
+            group: verified.group,
+            pose_cw: verified.pose_cw,
+            matches: verified.matches,
+            inliers: verified.inliers,
+            confirmations,
+        }
+    }
 }
 
 /// What one keyframe's detection found.
@@ -278,28 +293,48 @@ impl LoopDetector {
     }
 
     /// Looks for a loop at keyframe `kf` (see the module's docs) and adds
-    /// it to the database: [`Self::plan`], then [`Self::confirm_pending`] or
-    /// [`Self::verify_candidate`] for each candidate until one is verified,
-    /// then [`Self::record`], all on one map. A caller that shares the map
-    /// with other threads runs the same steps with the map's lock released
-    /// between them (the system's loop-closing stage does).
+    /// it to the database, all on one map ([`Self::process_with`]).
     pub fn process(
         &mut self,
         map: &Map,
         kf: KeyFrameId,
         rig: &CameraRig,
     ) -> Result<DetectionOutcome, SlamError> {
+        self.process_with(|| Ok(map), kf, rig)
+    }
+
+    /// The detection's steps: [`Self::plan`], then [`Self::confirm_pending`]
+    /// or [`Self::verify_candidate`] for each candidate until one is
+    /// verified, then [`Self::record`]. `read` gives the map for one step;
+    /// a caller that shares the map with other threads passes a read lock,
+    /// so that the lock is held for one step at a time (the system's
+    /// loop-closing stage does), never across the whole detection.
+    pub fn process_with<M: std::ops::Deref<Target = Map>>(
+        &mut self,
+        read: impl Fn() -> Result<M, SlamError>,
+        kf: KeyFrameId,
+        rig: &CameraRig,
+    ) -> Result<DetectionOutcome, SlamError> {
         let mut outcome = DetectionOutcome::default();
-        let Some((descriptor, plan)) = self.plan(map, kf)? else {
+        let planned = self.plan(&*read()?, kf)?;
+        let Some((descriptor, plan)) = planned else {
             return Ok(outcome);
         };
         match plan {
             DetectionPlan::Confirm => {
-                outcome.accepted = self.confirm_pending(map, kf, rig, &mut outcome.rejected)?;
+                outcome.accepted =
+                    self.confirm_pending(&*read()?, kf, rig, &mut outcome.rejected)?;
             }
             DetectionPlan::Candidates(candidates) => {
                 for candidate in candidates {
-                    match self.verify_candidate(map, kf, candidate, rig, &mut outcome.rejected)? {
+                    let step = self.verify_candidate(
+                        &*read()?,
+                        kf,
+                        candidate,
+                        rig,
+                        &mut outcome.rejected,
+                    )?;
+                    match step {
                         CandidateStep::Rejected => continue,
                         CandidateStep::Pending => break,
                         CandidateStep::Accepted(accepted) => {
@@ -399,15 +434,11 @@ impl LoopDetector {
             "loop verified"
         );
         if confirmations >= th.confirmations {
-            return Ok(CandidateStep::Accepted(AcceptedLoop {
-                query: kf,
-                candidate,
-                group: verified.group,
-                pose_cw: verified.pose_cw,
-                matches: verified.matches,
-                inliers: verified.inliers,
+            return Ok(CandidateStep::Accepted(AcceptedLoop::from_verified(
+                kf,
+                verified,
                 confirmations,
-            }));
+            )));
         }
         self.pending = Some(CandidateStreak::start(
             PendingLoop {

@@ -183,15 +183,7 @@ impl MergeDetector {
             outcome.accepted = Some(AcceptedMerge {
                 target: tag,
                 t_target_active: correction.inverse(),
-                common: AcceptedLoop {
-                    query: kf,
-                    candidate,
-                    group: verified.group,
-                    pose_cw: verified.pose_cw,
-                    matches: verified.matches,
-                    inliers: verified.inliers,
-                    confirmations: total,
-                },
+                common: AcceptedLoop::from_verified(kf, verified, total),
             });
             return Ok(outcome);
         }

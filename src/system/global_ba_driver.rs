@@ -8,7 +8,7 @@
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::AtomicBool;
 
-use crate::error::{panic_message, SlamError};
+use crate::error::SlamError;
 use crate::loop_closing::{apply_global_ba, GlobalBaSummary, SolvedGlobalBa};
 use crate::map::SharedMap;
 
@@ -64,12 +64,7 @@ impl SlamSystem {
         let outcome = catch_unwind(AssertUnwindSafe(|| {
             run_global_ba(map, &self.rig, &never, hook)
         }))
-        .unwrap_or_else(|payload| {
-            Err(SlamError::Thread {
-                name: "global-ba",
-                reason: format!("it panicked: {}", panic_message(payload.as_ref())),
-            })
-        });
+        .unwrap_or_else(|payload| Err(SlamError::thread_panicked("global-ba", payload.as_ref())));
         self.apply_outcome(map, outcome)
     }
 

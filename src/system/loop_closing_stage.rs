@@ -18,9 +18,8 @@ use std::collections::BTreeMap;
 
 use crate::error::MapContext;
 use crate::loop_closing::{
-    correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, CandidateStep, DetectionOutcome,
-    DetectionPlan, LoopCorrection, LoopDetector, LoopStage, LoopThresholds, MergeDetector,
-    SharedKeyframeDatabase,
+    correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, LoopCorrection, LoopDetector,
+    LoopStage, LoopThresholds, MergeDetector, SharedKeyframeDatabase,
 };
 use crate::map::{KeyFrameId, Map, SharedMap};
 use crate::optim::{LieGroup, Se3};
@@ -201,7 +200,11 @@ impl LoopClosingStage {
         let Some(kf) = self.queue.pop_front() else {
             return Ok(step);
         };
-        let outcome = self.detect_loop(map, kf, rig)?;
+        // One short read lock per detection step, none across the whole
+        // detection: local mapping and tracking wait for at most one
+        // candidate's check.
+        let read = || map.read().map_err(|_| SlamError::PoisonedMap);
+        let outcome = self.detector.process_with(read, kf, rig)?;
         let map = map.read().map_err(|_| SlamError::PoisonedMap)?;
         for r in outcome.rejected {
             step.rejected.push(RejectedLoopRecord {
@@ -242,60 +245,6 @@ impl LoopClosingStage {
         }
         step.detection = outcome.accepted.map(Detection::Merge);
         Ok(step)
-    }
-
-    /// Loop detection for keyframe `kf` of `map` ([`LoopDetector::process`]'s
-    /// steps) with the map's read lock taken for each step alone: the plan
-    /// (descriptor and database query), then each candidate's check, then
-    /// the database insert. Local mapping and tracking never wait for more
-    /// than one candidate's check; a keyframe culled between steps is
-    /// skipped by the step that finds it gone.
-    fn detect_loop(
-        &mut self,
-        map: &SharedMap,
-        kf: KeyFrameId,
-        rig: &CameraRig,
-    ) -> Result<DetectionOutcome, SlamError> {
-        let read = || map.read().map_err(|_| SlamError::PoisonedMap);
-        let mut outcome = DetectionOutcome::default();
-        let planned = self.detector.plan(&*read()?, kf)?;
-        let Some((descriptor, plan)) = planned else {
-            return Ok(outcome);
-        };
-        match plan {
-            DetectionPlan::Nothing => {}
-            DetectionPlan::Confirm => {
-                let m = read()?;
-                outcome.accepted =
-                    self.detector
-                        .confirm_pending(&m, kf, rig, &mut outcome.rejected)?;
-            }
-            DetectionPlan::Candidates(candidates) => {
-                for candidate in candidates {
-                    let step = {
-                        let m = read()?;
-                        self.detector.verify_candidate(
-                            &m,
-                            kf,
-                            candidate,
-                            rig,
-                            &mut outcome.rejected,
-                        )?
-                    };
-                    match step {
-                        CandidateStep::Rejected => continue,
-                        CandidateStep::Pending => break,
-                        CandidateStep::Accepted(accepted) => {
-                            outcome.accepted = Some(accepted);
-                            break;
-                        }
-                    }
-                }
-            }
-        }
-        self.detector.record(kf, &descriptor)?;
-        outcome.descriptor = Some(descriptor);
-        Ok(outcome)
     }
 
     /// Merges the active map (`active`, atlas index `active_index`) into

@@ -4,7 +4,7 @@
 
 use std::thread::JoinHandle;
 
-use crate::error::{panic_message, SlamError};
+use crate::error::SlamError;
 
 /// A named thread whose body returns `T`.
 #[derive(Debug)]
@@ -53,9 +53,9 @@ impl<T: Send + 'static> Worker<T> {
             .handle
             .take()
             .ok_or_else(|| self.error("it was already stopped"))?;
-        handle.join().map_err(|payload| {
-            self.error(format!("it panicked: {}", panic_message(payload.as_ref())))
-        })
+        handle
+            .join()
+            .map_err(|payload| SlamError::thread_panicked(self.name, payload.as_ref()))
     }
 }
 
