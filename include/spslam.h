@@ -69,6 +69,11 @@ enum SpslamStatus
    * the loaded ONNX Runtime library is a CPU build or no GPU is usable).
    */
   SPSLAM_STATUS_DEVICE_ERROR = 7,
+  /**
+   * A handle argument is not NULL but is not a live handle of its kind:
+   * already destroyed, or never returned by this library.
+   */
+  SPSLAM_STATUS_INVALID_HANDLE = 8,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -401,11 +406,12 @@ SpslamStatus spslam_extractor_create(const struct SpslamConfig *config,
                                      struct SpslamExtractor **out);
 
 /**
- * Frees an extractor. NULL is a no-op.
+ * Frees an extractor. NULL is a no-op; so is a pointer that is not a live
+ * extractor (already destroyed, or foreign), which also sets
+ * [`spslam_last_error`].
  *
  * # Safety
- * `extractor` is NULL or a handle from [`spslam_extractor_create`] not yet
- * destroyed and not in use on another thread.
+ * `extractor` is not in use on another thread.
  */
 void spslam_extractor_destroy(struct SpslamExtractor *extractor);
 
@@ -419,8 +425,8 @@ void spslam_extractor_destroy(struct SpslamExtractor *extractor);
  * Zero sizes, `stride < width` or a short buffer → `SPSLAM_STATUS_IMAGE_ERROR`.
  *
  * # Safety
- * `extractor` is NULL or a live handle used by no other thread during the
- * call; `data` is NULL or readable for `data_len` bytes; `out` is NULL or
+ * `extractor` is used by no other thread during the call (NULL, destroyed
+ * or foreign pointers are reported, not followed); `data` is NULL or readable for `data_len` bytes; `out` is NULL or
  * valid for writing one pointer.
  */
 SpslamStatus spslam_extract(struct SpslamExtractor *extractor,
@@ -436,7 +442,8 @@ SpslamStatus spslam_extract(struct SpslamExtractor *extractor,
  * pointers stay valid until `features` is destroyed.
  *
  * # Safety
- * `features` is NULL or a live result of [`spslam_extract`]; `out` is NULL or
+ * `features` is not destroyed concurrently (NULL, destroyed or foreign
+ * pointers are reported, not followed); `out` is NULL or
  * valid for writing one `SpslamFeaturesView`.
  */
 SpslamStatus spslam_features_view(const struct SpslamFeatures *features,
@@ -450,7 +457,8 @@ SpslamStatus spslam_features_view(const struct SpslamFeatures *features,
  * destroyed.
  *
  * # Safety
- * `features` is NULL or a live result of [`spslam_extract`]; `out` is NULL
+ * `features` is not destroyed concurrently (NULL, destroyed or foreign
+ * pointers are reported, not followed); `out` is NULL
  * or valid for writing one `SpslamBinaryView`.
  */
 SpslamStatus spslam_features_binary_view(const struct SpslamFeatures *features,
@@ -460,16 +468,19 @@ SpslamStatus spslam_features_binary_view(const struct SpslamFeatures *features,
  * Writes the number of keypoints in `features` to `*count`.
  *
  * # Safety
- * `features` is NULL or a live result of [`spslam_extract`]; `count` is NULL
+ * `features` is not destroyed concurrently (NULL, destroyed or foreign
+ * pointers are reported, not followed); `count` is NULL
  * or valid for writing one `size_t`.
  */
 SpslamStatus spslam_features_count(const struct SpslamFeatures *features, size_t *count);
 
 /**
- * Frees a result of [`spslam_extract`]. NULL is a no-op.
+ * Frees a result of [`spslam_extract`]. NULL is a no-op; so is a pointer
+ * that is not a live result (already destroyed, or foreign), which also sets
+ * [`spslam_last_error`].
  *
  * # Safety
- * `features` is NULL or a result of [`spslam_extract`] not yet destroyed.
+ * `features` is not in use on another thread.
  */
 void spslam_features_destroy(struct SpslamFeatures *features);
 
@@ -477,7 +488,8 @@ void spslam_features_destroy(struct SpslamFeatures *features);
  * Writes the number of floats per descriptor (256 for SuperPoint) to `*out`.
  *
  * # Safety
- * `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `size_t`.
+ * `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+ * pointers are reported, not followed); `out` is NULL or valid for writing one `size_t`.
  */
 SpslamStatus spslam_extractor_descriptor_len(const struct SpslamExtractor *extractor, size_t *out);
 
@@ -486,7 +498,8 @@ SpslamStatus spslam_extractor_descriptor_len(const struct SpslamExtractor *extra
  * `SPSLAM_DEVICE_CPU` or `SPSLAM_DEVICE_CUDA` (`AUTO` is resolved at creation).
  *
  * # Safety
- * `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `int32_t`.
+ * `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+ * pointers are reported, not followed); `out` is NULL or valid for writing one `int32_t`.
  */
 SpslamStatus spslam_extractor_device(const struct SpslamExtractor *extractor, int32_t *out);
 
@@ -494,7 +507,8 @@ SpslamStatus spslam_extractor_device(const struct SpslamExtractor *extractor, in
  * Writes the number of pyramid levels (ORB-SLAM3's `nlevels`) to `*out`.
  *
  * # Safety
- * `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `size_t`.
+ * `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+ * pointers are reported, not followed); `out` is NULL or valid for writing one `size_t`.
  */
 SpslamStatus spslam_extractor_levels(const struct SpslamExtractor *extractor, size_t *out);
 
@@ -506,7 +520,8 @@ SpslamStatus spslam_extractor_levels(const struct SpslamExtractor *extractor, si
  * and `mnFeaturesPerLevel`. Any array pointer may be NULL to skip that table.
  *
  * # Safety
- * `extractor` is NULL or a live handle; every non-NULL array is valid for
+ * `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+ * pointers are reported, not followed); every non-NULL array is valid for
  * writing `capacity` elements.
  */
 SpslamStatus spslam_extractor_scale_tables(const struct SpslamExtractor *extractor,

@@ -10,15 +10,21 @@
 //! - objects returned through `out` pointers are owned by the caller and freed
 //!   with the matching `*_destroy` function (passing NULL to it is a no-op);
 //! - one extractor handle is used by one thread at a time; different handles
-//!   may be used from different threads at the same time.
+//!   may be used from different threads at the same time;
+//! - every handle passed in is checked against the handles this library gave
+//!   out and has not freed yet: a destroyed, foreign or garbage pointer gives
+//!   [`SpslamStatus::InvalidHandle`] (a no-op for the `*_destroy` functions)
+//!   instead of undefined behaviour, so a double free is harmless.
 //!
 //! All of the crate's `unsafe` code lives in this module.
 #![deny(clippy::undocumented_unsafe_blocks, unsafe_op_in_unsafe_fn)]
 
 use std::cell::RefCell;
+use std::collections::BTreeSet;
 use std::ffi::{c_char, CStr, CString};
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
+use std::sync::{Mutex, MutexGuard};
 
 use crate::error::panic_message;
 use crate::features::{
@@ -49,6 +55,9 @@ pub enum SpslamStatus {
     /// The requested device cannot run the network (e.g. CUDA asked for, but
     /// the loaded ONNX Runtime library is a CPU build or no GPU is usable).
     DeviceError = 7,
+    /// A handle argument is not NULL but is not a live handle of its kind:
+    /// already destroyed, or never returned by this library.
+    InvalidHandle = 8,
 }
 
 /// The network's precision (values of [`SpslamConfig::precision`]); each
@@ -233,6 +242,53 @@ thread_local! {
     static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
 }
 
+/// The addresses of the handles of one kind that this library gave out and
+/// has not freed yet. Checked before any handle is dereferenced.
+struct LiveHandles(Mutex<BTreeSet<usize>>);
+
+/// Live extractors ([`spslam_extractor_create`] → [`spslam_extractor_destroy`]).
+static LIVE_EXTRACTORS: LiveHandles = LiveHandles::new();
+/// Live extraction results ([`spslam_extract`] → [`spslam_features_destroy`]).
+static LIVE_FEATURES: LiveHandles = LiveHandles::new();
+
+impl LiveHandles {
+    const fn new() -> Self {
+        Self(Mutex::new(BTreeSet::new()))
+    }
+
+    /// A set of integers cannot be left inconsistent by a panic, so a
+    /// poisoned lock is taken over.
+    fn set(&self) -> MutexGuard<'_, BTreeSet<usize>> {
+        self.0
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    fn insert<T>(&self, handle: *const T) {
+        self.set().insert(handle as usize);
+    }
+
+    fn contains<T>(&self, handle: *const T) -> bool {
+        self.set().contains(&(handle as usize))
+    }
+
+    /// Forgets a handle; false when it was not live (nothing to free).
+    fn remove<T>(&self, handle: *const T) -> bool {
+        self.set().remove(&(handle as usize))
+    }
+
+    /// Checks a handle argument: NULL and unknown pointers are errors.
+    fn check<T>(&self, handle: *const T, name: &str) -> Result<(), FfiError> {
+        if handle.is_null() {
+            return Err(FfiError::null(name));
+        }
+        if !self.contains(handle) {
+            return Err(FfiError::invalid_handle(name));
+        }
+        Ok(())
+    }
+}
+
 struct FfiError {
     status: SpslamStatus,
     message: String,
@@ -252,6 +308,13 @@ impl FfiError {
 
     fn invalid(message: impl Into<String>) -> Self {
         Self::new(SpslamStatus::InvalidArgument, message)
+    }
+
+    fn invalid_handle(name: &str) -> Self {
+        Self::new(
+            SpslamStatus::InvalidHandle,
+            format!("`{name}` is not a live handle (already destroyed, or not returned by this library)"),
+        )
     }
 }
 
@@ -563,38 +626,64 @@ pub unsafe extern "C" fn spslam_extractor_create(
         let config = unsafe { config_from_c(c) }?;
         let inner = SuperPointExtractor::new(config)?;
         let handle = Box::into_raw(Box::new(SpslamExtractor { inner, busy: false }));
+        LIVE_EXTRACTORS.insert(handle);
         // SAFETY: as above, `out` is valid for writing.
         unsafe { out.write(handle) };
         Ok(())
     })
 }
 
-/// Frees an extractor. NULL is a no-op.
+/// Frees an extractor. NULL is a no-op; so is a pointer that is not a live
+/// extractor (already destroyed, or foreign), which also sets
+/// [`spslam_last_error`].
 ///
 /// # Safety
-/// `extractor` is NULL or a handle from [`spslam_extractor_create`] not yet
-/// destroyed and not in use on another thread.
+/// `extractor` is not in use on another thread.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_extractor_destroy(extractor: *mut SpslamExtractor) {
+    set_last_error("");
     if extractor.is_null() {
         return;
     }
-    // SAFETY: the handle came from `Box::into_raw` in `spslam_extractor_create`
-    // and is destroyed once, by the caller's contract.
+    if !LIVE_EXTRACTORS.remove(extractor) {
+        set_last_error(&format!(
+            "spslam_extractor_destroy: {}",
+            FfiError::invalid_handle("extractor").message
+        ));
+        return;
+    }
+    // SAFETY: the handle was live: it came from `Box::into_raw` in
+    // `spslam_extractor_create`, and removing it from the live set above
+    // makes this the only free.
     let handle = unsafe { Box::from_raw(extractor) };
     // Dropping releases the ONNX Runtime session; never let a panic escape.
     let _ = catch_unwind(AssertUnwindSafe(move || drop(handle)));
 }
 
-/// Borrows a handle for reading.
+/// Borrows a handle for reading, after checking that it is live.
 ///
 /// # Safety
-/// `extractor` is NULL or a live handle not mutated concurrently.
+/// `extractor` is not mutated concurrently (e.g. destroyed on another thread).
 unsafe fn handle_ref<'a>(
     extractor: *const SpslamExtractor,
 ) -> Result<&'a SpslamExtractor, FfiError> {
-    // SAFETY: forwarded caller contract.
+    LIVE_EXTRACTORS.check(extractor, "extractor")?;
+    // SAFETY: a live handle (checked above) points to a boxed extractor that
+    // only its destroy call frees.
     unsafe { extractor.as_ref() }.ok_or_else(|| FfiError::null("extractor"))
+}
+
+/// Borrows an extraction result, after checking that it is live.
+///
+/// # Safety
+/// `features` is not destroyed concurrently on another thread.
+unsafe fn features_ref<'a>(
+    features: *const SpslamFeatures,
+) -> Result<&'a SpslamFeatures, FfiError> {
+    LIVE_FEATURES.check(features, "features")?;
+    // SAFETY: a live result (checked above) points to a boxed result that
+    // only its destroy call frees.
+    unsafe { features.as_ref() }.ok_or_else(|| FfiError::null("features"))
 }
 
 /// Writes a value through a checked out pointer.
@@ -619,8 +708,8 @@ unsafe fn write_out<T>(out: *mut T, name: &str, value: T) -> Result<(), FfiError
 /// Zero sizes, `stride < width` or a short buffer → `SPSLAM_STATUS_IMAGE_ERROR`.
 ///
 /// # Safety
-/// `extractor` is NULL or a live handle used by no other thread during the
-/// call; `data` is NULL or readable for `data_len` bytes; `out` is NULL or
+/// `extractor` is used by no other thread during the call (NULL, destroyed
+/// or foreign pointers are reported, not followed); `data` is NULL or readable for `data_len` bytes; `out` is NULL or
 /// valid for writing one pointer.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_extract(
@@ -638,7 +727,9 @@ pub unsafe extern "C" fn spslam_extract(
         }
         // SAFETY: `out` is non-NULL and writable by the caller's contract.
         unsafe { out.write(std::ptr::null_mut()) };
-        // SAFETY: NULL or a live handle used only by this thread, by the caller's contract.
+        LIVE_EXTRACTORS.check(extractor, "extractor")?;
+        // SAFETY: a live handle (checked above), used only by this thread by
+        // the caller's contract.
         let handle = unsafe { extractor.as_mut() }.ok_or_else(|| FfiError::null("extractor"))?;
         if data.is_null() {
             return Err(FfiError::null("data"));
@@ -685,6 +776,7 @@ pub unsafe extern "C" fn spslam_extract(
         handle.busy = false;
         let features = into_c_features(result?);
         let boxed = Box::into_raw(Box::new(features));
+        LIVE_FEATURES.insert(boxed);
         // SAFETY: as above, `out` is valid for writing.
         unsafe { out.write(boxed) };
         Ok(())
@@ -735,7 +827,8 @@ fn into_c_features(features: Features) -> SpslamFeatures {
 /// pointers stay valid until `features` is destroyed.
 ///
 /// # Safety
-/// `features` is NULL or a live result of [`spslam_extract`]; `out` is NULL or
+/// `features` is not destroyed concurrently (NULL, destroyed or foreign
+/// pointers are reported, not followed); `out` is NULL or
 /// valid for writing one `SpslamFeaturesView`.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_features_view(
@@ -743,8 +836,8 @@ pub unsafe extern "C" fn spslam_features_view(
     out: *mut SpslamFeaturesView,
 ) -> SpslamStatus {
     ffi_call("spslam_features_view", || {
-        // SAFETY: NULL or a live result by the caller's contract.
-        let f = unsafe { features.as_ref() }.ok_or_else(|| FfiError::null("features"))?;
+        // SAFETY: not destroyed concurrently, by the caller's contract.
+        let f = unsafe { features_ref(features) }?;
         let count = f.keypoints.len();
         let view = SpslamFeaturesView {
             count,
@@ -772,7 +865,8 @@ pub unsafe extern "C" fn spslam_features_view(
 /// destroyed.
 ///
 /// # Safety
-/// `features` is NULL or a live result of [`spslam_extract`]; `out` is NULL
+/// `features` is not destroyed concurrently (NULL, destroyed or foreign
+/// pointers are reported, not followed); `out` is NULL
 /// or valid for writing one `SpslamBinaryView`.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_features_binary_view(
@@ -780,8 +874,8 @@ pub unsafe extern "C" fn spslam_features_binary_view(
     out: *mut SpslamBinaryView,
 ) -> SpslamStatus {
     ffi_call("spslam_features_binary_view", || {
-        // SAFETY: NULL or a live result by the caller's contract.
-        let f = unsafe { features.as_ref() }.ok_or_else(|| FfiError::null("features"))?;
+        // SAFETY: not destroyed concurrently, by the caller's contract.
+        let f = unsafe { features_ref(features) }?;
         let count = f.keypoints.len();
         let view = SpslamBinaryView {
             count,
@@ -810,7 +904,8 @@ pub unsafe extern "C" fn spslam_features_binary_view(
 /// Writes the number of keypoints in `features` to `*count`.
 ///
 /// # Safety
-/// `features` is NULL or a live result of [`spslam_extract`]; `count` is NULL
+/// `features` is not destroyed concurrently (NULL, destroyed or foreign
+/// pointers are reported, not followed); `count` is NULL
 /// or valid for writing one `size_t`.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_features_count(
@@ -818,31 +913,43 @@ pub unsafe extern "C" fn spslam_features_count(
     count: *mut usize,
 ) -> SpslamStatus {
     ffi_call("spslam_features_count", || {
-        // SAFETY: NULL or a live result by the caller's contract.
-        let f = unsafe { features.as_ref() }.ok_or_else(|| FfiError::null("features"))?;
+        // SAFETY: not destroyed concurrently, by the caller's contract.
+        let f = unsafe { features_ref(features) }?;
         // SAFETY: forwarded caller contract on `count`.
         unsafe { write_out(count, "count", f.keypoints.len()) }
     })
 }
 
-/// Frees a result of [`spslam_extract`]. NULL is a no-op.
+/// Frees a result of [`spslam_extract`]. NULL is a no-op; so is a pointer
+/// that is not a live result (already destroyed, or foreign), which also sets
+/// [`spslam_last_error`].
 ///
 /// # Safety
-/// `features` is NULL or a result of [`spslam_extract`] not yet destroyed.
+/// `features` is not in use on another thread.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_features_destroy(features: *mut SpslamFeatures) {
+    set_last_error("");
     if features.is_null() {
         return;
     }
-    // SAFETY: the pointer came from `Box::into_raw` in `spslam_extract` and is
-    // destroyed once, by the caller's contract.
+    if !LIVE_FEATURES.remove(features) {
+        set_last_error(&format!(
+            "spslam_features_destroy: {}",
+            FfiError::invalid_handle("features").message
+        ));
+        return;
+    }
+    // SAFETY: the result was live: it came from `Box::into_raw` in
+    // `spslam_extract`, and removing it from the live set above makes this
+    // the only free.
     drop(unsafe { Box::from_raw(features) });
 }
 
 /// Writes the number of floats per descriptor (256 for SuperPoint) to `*out`.
 ///
 /// # Safety
-/// `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `size_t`.
+/// `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+/// pointers are reported, not followed); `out` is NULL or valid for writing one `size_t`.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_extractor_descriptor_len(
     extractor: *const SpslamExtractor,
@@ -860,7 +967,8 @@ pub unsafe extern "C" fn spslam_extractor_descriptor_len(
 /// `SPSLAM_DEVICE_CPU` or `SPSLAM_DEVICE_CUDA` (`AUTO` is resolved at creation).
 ///
 /// # Safety
-/// `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `int32_t`.
+/// `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+/// pointers are reported, not followed); `out` is NULL or valid for writing one `int32_t`.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_extractor_device(
     extractor: *const SpslamExtractor,
@@ -878,7 +986,8 @@ pub unsafe extern "C" fn spslam_extractor_device(
 /// Writes the number of pyramid levels (ORB-SLAM3's `nlevels`) to `*out`.
 ///
 /// # Safety
-/// `extractor` is NULL or a live handle; `out` is NULL or valid for writing one `size_t`.
+/// `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+/// pointers are reported, not followed); `out` is NULL or valid for writing one `size_t`.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_extractor_levels(
     extractor: *const SpslamExtractor,
@@ -899,7 +1008,8 @@ pub unsafe extern "C" fn spslam_extractor_levels(
 /// and `mnFeaturesPerLevel`. Any array pointer may be NULL to skip that table.
 ///
 /// # Safety
-/// `extractor` is NULL or a live handle; every non-NULL array is valid for
+/// `extractor` is not destroyed concurrently (NULL, destroyed or foreign
+/// pointers are reported, not followed); every non-NULL array is valid for
 /// writing `capacity` elements.
 #[no_mangle]
 pub unsafe extern "C" fn spslam_extractor_scale_tables(

@@ -451,3 +451,86 @@ fn bad_images_are_errors_with_messages() {
         assert!(last_error().contains("make setup-gpu"), "{}", last_error());
     }
 }
+
+/// Destroyed and foreign handles are reported (`SPSLAM_STATUS_INVALID_HANDLE`)
+/// instead of followed, and a second destroy is a no-op with a message.
+#[test]
+fn destroyed_and_foreign_handles_are_reported() {
+    if inputs("image_0").is_none() {
+        return;
+    }
+    let mut config = orb_slam3_c_config();
+    config.n_levels = 1;
+    let mut extractor = ptr::null_mut();
+    // SAFETY: valid config and out pointer.
+    assert_eq!(
+        unsafe { spslam_extractor_create(&config, &mut extractor) },
+        SpslamStatus::Ok
+    );
+    let pixels = vec![128u8; 64 * 64];
+    let mut features = ptr::null_mut();
+    // SAFETY: live handle, 4096 readable bytes, writable out pointer.
+    let status =
+        unsafe { spslam_extract(extractor, pixels.as_ptr(), 4096, 64, 64, 64, &mut features) };
+    assert_eq!(status, SpslamStatus::Ok, "{}", last_error());
+    let mut count = 0usize;
+    // SAFETY: every pointer below is either live, or checked by the library
+    // before it is followed (the point of this test); outputs are writable.
+    unsafe {
+        assert_eq!(
+            spslam_features_count(features, &mut count),
+            SpslamStatus::Ok
+        );
+        spslam_features_destroy(features);
+        assert_eq!(last_error(), "");
+        assert_eq!(
+            spslam_features_count(features, &mut count),
+            SpslamStatus::InvalidHandle
+        );
+        assert!(
+            last_error().contains("`features` is not a live handle"),
+            "{}",
+            last_error()
+        );
+        spslam_features_destroy(features);
+        assert!(
+            last_error().contains("spslam_features_destroy"),
+            "{}",
+            last_error()
+        );
+        let mut view = std::mem::MaybeUninit::<SpslamFeaturesView>::uninit();
+        assert_eq!(
+            spslam_features_view(features, view.as_mut_ptr()),
+            SpslamStatus::InvalidHandle
+        );
+
+        spslam_extractor_destroy(extractor);
+        let mut levels = 0usize;
+        assert_eq!(
+            spslam_extractor_levels(extractor, &mut levels),
+            SpslamStatus::InvalidHandle
+        );
+        let status = spslam_extract(extractor, pixels.as_ptr(), 4096, 64, 64, 64, &mut features);
+        assert_eq!(status, SpslamStatus::InvalidHandle);
+        assert!(features.is_null());
+        spslam_extractor_destroy(extractor);
+        assert!(
+            last_error().contains("not a live handle"),
+            "{}",
+            last_error()
+        );
+
+        // A pointer this library never returned: a features result passed as
+        // an extractor, and a made-up address.
+        let foreign = 0x1000usize as *mut SpslamExtractor;
+        assert_eq!(
+            spslam_extractor_levels(foreign, &mut levels),
+            SpslamStatus::InvalidHandle
+        );
+        let bogus = pixels.as_ptr() as *const SpslamFeatures;
+        assert_eq!(
+            spslam_features_count(bogus, &mut count),
+            SpslamStatus::InvalidHandle
+        );
+    }
+}
