@@ -8,6 +8,7 @@ pub mod error;
 pub mod format;
 pub mod io;
 pub mod kitti_metric;
+pub mod line_plot;
 pub mod place_recognition;
 pub mod plot;
 pub mod report;
@@ -28,6 +29,7 @@ pub use io::{
     write_kitti, write_trajectory, write_tum,
 };
 pub use kitti_metric::{kitti_metric, KittiMetric, LengthError, SegmentError};
+pub use line_plot::{write_line_panels, LinePanel, LineSeries};
 pub use plot::{
     write_error_plot, write_trajectory_plot, write_trajectory_plot_with_links, PlotPlane,
 };

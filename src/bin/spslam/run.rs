@@ -12,6 +12,7 @@ mod euroc_layout;
 mod evaluation;
 mod frame_loop;
 mod kitti_layout;
+mod memory_log;
 mod output;
 mod pipeline;
 mod signals;
@@ -176,6 +177,15 @@ pub struct RunArgs {
     /// extents), xy, xz or yz.
     #[arg(long, value_enum, default_value_t = PlotPlaneChoice::Auto)]
     plot_plane: PlotPlaneChoice,
+    /// Write the resident memory and the atlas' size (keyframes, map
+    /// points, maps) every --memory-every frames to this CSV file, row by
+    /// row, and plot them next to it (same name, .png) at the end: for
+    /// long runs (`make soak`).
+    #[arg(long)]
+    memory_log: Option<PathBuf>,
+    /// Frames between two --memory-log samples.
+    #[arg(long, default_value_t = 100, requires = "memory_log")]
+    memory_every: usize,
 }
 
 /// `--extractor`.
@@ -365,11 +375,19 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut unreadable = Vec::new();
+    let memory_log = match &args.memory_log {
+        Some(path) => Some(std::cell::RefCell::new(memory_log::MemoryLog::create(
+            path,
+            args.memory_every,
+        )?)),
+        None => None,
+    };
     let frame_loop = FrameLoop {
         frames: &frames,
         strict: args.strict,
         stop: &stop,
         bar: &bar,
+        memory_log: memory_log.as_ref(),
     };
     let extractors = slam
         .detach_extractors()
@@ -395,6 +413,16 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     }
 
     let mut map_problem = None;
+    if let (Some(log), Some(path)) = (&memory_log, &args.memory_log) {
+        let png = path.with_extension("png");
+        match log
+            .borrow()
+            .plot(&png, &format!("{}: memory and map size", args.dataset))
+        {
+            Ok(()) => eprintln!("memory log: {} (plot {})", path.display(), png.display()),
+            Err(e) => eprintln!("warning: {e:#}"),
+        }
+    }
     if let Some(path) = &args.save_map {
         match slam.save_map(
             path,

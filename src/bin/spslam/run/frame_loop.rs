@@ -5,6 +5,7 @@
 //! error: every way it ends is a [`RunEnd`], so that the caller writes the
 //! outputs of the frames processed so far on every path.
 
+use std::cell::RefCell;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use indicatif::ProgressBar;
@@ -13,6 +14,7 @@ use spslam::system::SlamSystem;
 
 use std::sync::mpsc::Receiver;
 
+use super::memory_log::MemoryLog;
 use super::pipeline::{PrepareError, Prepared, PreparedFrame};
 use super::signals::StopRequest;
 use super::source::{InputFrame, Unreadable, UnreadableCause};
@@ -79,6 +81,8 @@ pub struct FrameLoop<'a> {
     pub stop: &'a StopRequest,
     /// The progress bar; messages are printed above it.
     pub bar: &'a ProgressBar,
+    /// `--memory-log`, sampled after every frame it asks for.
+    pub memory_log: Option<&'a RefCell<MemoryLog>>,
 }
 
 /// One frame's outcome that is not a tracked record.
@@ -148,6 +152,15 @@ impl FrameLoop<'_> {
                 }
             }
             self.bar.inc(1);
+            if let Some(log) = self.memory_log {
+                if let Err(e) = log.borrow_mut().after_frame(index + 1, slam) {
+                    // Asked for and not written (a full disk): stop, and
+                    // write the outputs of the frames so far.
+                    return RunEnd::Failed {
+                        error: format!("the memory log failed: {e:#}"),
+                    };
+                }
+            }
         }
         RunEnd::Complete
     }

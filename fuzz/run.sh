@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# Builds and runs the C ABI fuzzer (fuzz_targets/c_abi.rs) with libFuzzer.
+#
+#   fuzz/run.sh short            # make test: replay the corpus, then fuzz 60 s (stable)
+#   fuzz/run.sh long [ARGS...]   # the long run: AddressSanitizer + LeakSanitizer
+#                                # (nightly toolchain), libFuzzer ARGS appended,
+#                                # e.g. -runs=10000000 -jobs=2 -workers=2
+#
+# Stable Rust cannot build with AddressSanitizer (-Zsanitizer), so the short
+# run checks for crashes, panics and failed assertions only; the long run, on
+# a machine with a nightly toolchain, adds memory errors and leaks.
+set -euo pipefail
+cd "$(dirname "$0")"
+mode=${1:-short}
+shift || true
+
+export SPSLAM_FUZZ_TINY_MODEL="$PWD/target/tiny_superpoint.onnx"
+mkdir -p target corpus/c_abi artifacts
+[[ -f "$SPSLAM_FUZZ_TINY_MODEL" ]] || ../.deps/venv/bin/python make_tiny_model.py "$SPSLAM_FUZZ_TINY_MODEL"
+
+flags="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4"
+flags+=" -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table"
+flags+=" -Cllvm-args=-sanitizer-coverage-trace-compares -Cdebug-assertions -Coverflow-checks"
+target=x86_64-unknown-linux-gnu
+case "$mode" in
+  short)
+    toolchain=()
+    target_dir=target/stable ;;
+  long)
+    toolchain=(+nightly)
+    flags+=" -Zsanitizer=address -Cforce-frame-pointers"
+    target_dir=target/asan ;;
+  *) echo "usage: fuzz/run.sh short|long [libFuzzer args]" >&2; exit 2 ;;
+esac
+
+# --target keeps the flags off build scripts and proc macros (as cargo fuzz does).
+RUSTFLAGS="$flags" cargo "${toolchain[@]}" build --release --target "$target" \
+  --target-dir "$target_dir" --bin c_abi
+bin="$target_dir/$target/release/c_abi"
+
+# Leaks in ONNX Runtime's own process-lifetime singletons are not ours.
+printf 'leak:libonnxruntime\n' > target/lsan.supp
+export LSAN_OPTIONS="suppressions=$PWD/target/lsan.supp:print_suppressions=0"
+export ASAN_OPTIONS="detect_leaks=1:allocator_may_return_null=1"
+
+# The crashers found so far (fixed) replay first: regression tests.
+if compgen -G "regressions/*" > /dev/null; then
+  "$bin" -runs=1 regressions/*
+fi
+case "$mode" in
+  short) "$bin" -max_total_time=60 -print_final_stats=1 -artifact_prefix=artifacts/ corpus/c_abi seeds ;;
+  long) "$bin" -print_final_stats=1 -artifact_prefix=artifacts/ "$@" corpus/c_abi seeds ;;
+esac
