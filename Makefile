@@ -10,7 +10,7 @@ export SPSLAM_DATA
 PYTHON := .deps/venv/bin/python
 OUT ?= out
 
-.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python lint bench header clean-deps evaluate setup-train train-superpoint bench-homography
+.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint bench-homography
 
 all: build
 
@@ -103,7 +103,27 @@ include cpp_shim/orbslam3/orbslam3.mk
 # `make orbslam3-check` alone runs each three times).
 test: BUILD_TARGETS = --lib --bins --tests --examples
 test: ORBSLAM3_RUNS = 1
-test: lint test-rust test-python cpp-test orbslam3-check
+test: lint test-rust test-python cpp-test orbslam3-check test-fuzz
+
+# The C ABI fuzzer (fuzz/README.md): its regression inputs, then a minute of
+# coverage-guided fuzzing (libFuzzer, stable Rust, no sanitizer). The long
+# run with AddressSanitizer and LeakSanitizer: `make fuzz-long` (nightly).
+test-fuzz: setup
+	bash fuzz/run.sh short
+
+FUZZ_ARGS ?= -runs=10000000
+fuzz-long: setup
+	bash fuzz/run.sh long $(FUZZ_ARGS)
+
+# The long run held flat (EVALUATION.md 'Soak'): 10,000 frames of the
+# synthetic loop (43 laps, 320x240, SuperPoint int8 on one level, loop
+# closing on), resident memory and the map's size every 100 frames, then
+# the figures and the plot. About 30 minutes here; resumes nothing (the
+# sequence is kept in $(SOAK_DIR) and reused).
+SOAK_DIR ?= $(OUT)/soak
+SOAK_FRAMES ?= 10000
+soak: build
+	bash tools/soak.sh $(SOAK_DIR) $(SOAK_FRAMES)
 
 bench: build
 	$(CARGO) bench --bench anms --bench extractor --bench precision --bench slam --bench place_query --bench loop_verify --bench map_load

@@ -19,6 +19,7 @@
 
 use std::ffi::{c_char, CStr, CString};
 use std::ptr;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use arbitrary::Arbitrary;
@@ -52,6 +53,14 @@ fn models() -> &'static Models {
     })
 }
 
+/// How often the calls that need a working model succeeded, printed every
+/// 2^16 inputs when `SPSLAM_FUZZ_STATS` is set (to see that the fuzzer
+/// gets past the argument checks).
+static INPUTS: AtomicUsize = AtomicUsize::new(0);
+static CREATED: AtomicUsize = AtomicUsize::new(0);
+static EXTRACTED: AtomicUsize = AtomicUsize::new(0);
+static KEYPOINTS: AtomicUsize = AtomicUsize::new(0);
+
 /// Which handle a call gets.
 #[derive(Arbitrary, Debug, Clone, Copy)]
 enum HandleChoice {
@@ -84,6 +93,48 @@ impl Size {
             Size::Any(v) => v,
             Size::Max => usize::MAX,
             Size::HalfMax => usize::MAX / 2 + 1,
+        }
+    }
+}
+
+/// An image geometry: anything, or one that fits its buffer (so that
+/// extraction is reached often, not only when the fuzzer guesses three
+/// related sizes).
+#[derive(Arbitrary, Debug, Clone, Copy)]
+enum Geometry {
+    Free {
+        /// Bytes the harness allocates (modulo 16 KiB + 1).
+        buffer_len: u16,
+        /// How many of them it says are readable (at most `buffer_len`).
+        claimed_len: Size,
+        width: Size,
+        height: Size,
+        stride: Size,
+    },
+    /// 16..=127 × 16..=127 pixels, rows `padding % 8` bytes longer.
+    Fitting { width: u8, height: u8, padding: u8 },
+}
+
+impl Geometry {
+    /// (buffer length, claimed length, width, height, stride).
+    fn resolve(self) -> (usize, usize, usize, usize, usize) {
+        match self {
+            Geometry::Free {
+                buffer_len,
+                claimed_len,
+                width,
+                height,
+                stride,
+            } => {
+                let buffer = buffer_len as usize % (16 * 1024 + 1);
+                (buffer, claimed_len.value().min(buffer), width.value(), height.value(), stride.value())
+            }
+            Geometry::Fitting { width, height, padding } => {
+                let (w, h) = (16 + width as usize % 112, 16 + height as usize % 112);
+                let stride = w + padding as usize % 8;
+                let len = stride * (h - 1) + w;
+                (len, len, w, h, stride)
+            }
         }
     }
 }
@@ -158,13 +209,7 @@ enum Op {
     DestroyExtractor(HandleChoice),
     Extract {
         extractor: HandleChoice,
-        /// Bytes the harness allocates (modulo 16 KiB + 1).
-        buffer_len: u16,
-        /// How many of them it says are readable (at most `buffer_len`).
-        claimed_len: Size,
-        width: Size,
-        height: Size,
-        stride: Size,
+        geometry: Geometry,
         /// Pixel pattern seed.
         fill: u8,
         null_data: bool,
@@ -409,6 +454,7 @@ fn run(op: &Op, handles: &mut Handles) {
             check_status(status, "extractor_create");
             if status == SpslamStatus::Ok {
                 assert!(!handle.is_null());
+                CREATED.fetch_add(1, Ordering::Relaxed);
                 handles.revive_extractor(handle);
             } else {
                 assert!(handle.is_null());
@@ -421,17 +467,13 @@ fn run(op: &Op, handles: &mut Handles) {
         }
         Op::Extract {
             extractor,
-            buffer_len,
-            claimed_len,
-            width,
-            height,
-            stride,
+            geometry,
             fill,
             null_data,
             null_out,
         } => {
-            let buffer = pixels(buffer_len as usize % (16 * 1024 + 1), fill);
-            let data_len = claimed_len.value().min(buffer.len());
+            let (buffer_len, data_len, width, height, stride) = geometry.resolve();
+            let buffer = pixels(buffer_len, fill);
             let data = if null_data { ptr::null() } else { buffer.as_ptr() };
             let mut features = ptr::null_mut();
             let out = if null_out { ptr::null_mut() } else { &mut features };
@@ -440,9 +482,9 @@ fn run(op: &Op, handles: &mut Handles) {
                     handles.extractor(extractor),
                     data,
                     data_len,
-                    width.value(),
-                    height.value(),
-                    stride.value(),
+                    width,
+                    height,
+                    stride,
                     out,
                 )
             };
@@ -455,12 +497,14 @@ fn run(op: &Op, handles: &mut Handles) {
                 let status = unsafe { spslam_features_view(features, view.as_mut_ptr()) };
                 assert_eq!(status, SpslamStatus::Ok);
                 let view = unsafe { view.assume_init() };
+                EXTRACTED.fetch_add(1, Ordering::Relaxed);
+                KEYPOINTS.fetch_add(view.count, Ordering::Relaxed);
                 if view.count > 0 {
                     let keypoints = unsafe { std::slice::from_raw_parts(view.keypoints, view.count) };
                     let descriptors = unsafe {
                         std::slice::from_raw_parts(view.descriptors, view.count * view.descriptor_len)
                     };
-                    let (w, h) = (width.value() as f32, height.value() as f32);
+                    let (w, h) = (width as f32, height as f32);
                     for k in keypoints {
                         assert!(k.x >= 0.0 && k.x < w && k.y >= 0.0 && k.y < h, "{k:?} outside {w}x{h}");
                     }
@@ -547,4 +591,13 @@ fuzz_target!(|ops: Vec<Op>| {
     }
     drop(handles);
     let _: *const c_char = spslam_last_error();
+    let n = INPUTS.fetch_add(1, Ordering::Relaxed) + 1;
+    if n % (1 << 16) == 0 && std::env::var_os("SPSLAM_FUZZ_STATS").is_some() {
+        eprintln!(
+            "[c_abi] {n} inputs: {} extractors created, {} extractions, {} keypoints",
+            CREATED.load(Ordering::Relaxed),
+            EXTRACTED.load(Ordering::Relaxed),
+            KEYPOINTS.load(Ordering::Relaxed)
+        );
+    }
 });

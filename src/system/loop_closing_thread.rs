@@ -12,7 +12,9 @@
 //! which then checks the queued keyframes first.
 
 use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, Sender};
+use std::sync::Arc;
 
 use crate::camera::CameraRig;
 use crate::error::SlamError;
@@ -59,20 +61,46 @@ pub(crate) struct LoopClosingThread {
     jobs: Option<Sender<LoopJob>>,
     findings: Receiver<LoopFinding>,
     worker: Worker<LoopClosingStage>,
+    /// Set while the thread checks a keyframe (for the frame records).
+    checking: Arc<AtomicBool>,
+}
+
+/// The channels and the flag the thread's body works with.
+struct Links {
+    jobs: Receiver<LoopJob>,
+    findings: Sender<LoopFinding>,
+    checking: Arc<AtomicBool>,
+}
+
+/// One check of the stage's next keyframe, with `checking` set meanwhile.
+fn check_next(
+    stage: &mut LoopClosingStage,
+    maps: &AtlasView,
+    rig: &CameraRig,
+    checking: &AtomicBool,
+) -> Result<DetectStep, SlamError> {
+    checking.store(true, Ordering::Relaxed);
+    let step = stage.detect_next(&maps.active, &maps.others, rig);
+    checking.store(false, Ordering::Relaxed);
+    step
 }
 
 fn run(
     mut stage: LoopClosingStage,
     rig: CameraRig,
     queued: AtlasView,
-    jobs: Receiver<LoopJob>,
-    findings: Sender<LoopFinding>,
+    links: Links,
 ) -> LoopClosingStage {
+    let Links {
+        jobs,
+        findings,
+        checking,
+    } = links;
     // Keyframes queued before a correction are checked first, on the
     // maps as they are after it.
     let mut holding = false;
     while stage.has_queued() && !holding {
-        let step = stage.detect_next(&queued.active, &queued.others, &rig);
+        let step = check_next(&mut stage, &queued, &rig, &checking);
         let finding = LoopFinding {
             step,
             maps: queued.clone(),
@@ -87,7 +115,7 @@ fn run(
         if holding {
             continue;
         }
-        let step = stage.detect_next(&job.maps.active, &job.maps.others, &rig);
+        let step = check_next(&mut stage, &job.maps, &rig, &checking);
         let finding = LoopFinding {
             step,
             maps: job.maps,
@@ -110,14 +138,25 @@ impl LoopClosingThread {
     ) -> Result<Self, SlamError> {
         let (job_tx, job_rx) = mpsc::channel();
         let (finding_tx, finding_rx) = mpsc::channel();
-        let worker = Worker::spawn("loop-closing", move || {
-            run(stage, rig, maps, job_rx, finding_tx)
-        })?;
+        let checking = Arc::new(AtomicBool::new(false));
+        let links = Links {
+            jobs: job_rx,
+            findings: finding_tx,
+            checking: Arc::clone(&checking),
+        };
+        let worker = Worker::spawn("loop-closing", move || run(stage, rig, maps, links))?;
         Ok(Self {
             jobs: Some(job_tx),
             findings: finding_rx,
             worker,
+            checking,
         })
+    }
+
+    /// Whether the thread is checking a keyframe (retrieval and candidate
+    /// verification) right now.
+    pub(crate) fn is_checking(&self) -> bool {
+        self.checking.load(Ordering::Relaxed)
     }
 
     /// Queues a keyframe of `maps.active` for the check. A thread that has

@@ -63,6 +63,11 @@ pub struct FrameRecord {
     pub timings: FrameTimings,
     /// Local mapping's summary when it ran.
     pub mapping: Option<MappingSummary>,
+    /// Whether the loop-closing thread was checking a keyframe (retrieval
+    /// and candidate verification) when this frame's tracking started or
+    /// ended: the frames whose tracking time shows what loop detection
+    /// costs tracking (`tools/tracking_latency.py`).
+    pub loop_check_running: bool,
 }
 
 /// One atlas map in a run's summary.

@@ -462,6 +462,7 @@ impl SlamSystem {
             relative_pose: None,
             timings: FrameTimings::default(),
             mapping: None,
+            loop_check_running: false,
         });
         let last = self.records.len() - 1;
         &self.records[last]
@@ -497,9 +498,11 @@ impl SlamSystem {
         }
         let active = self.atlas.active();
         let (map_index, map) = (active.index, active.map.clone());
+        let loop_check_at_start = self.loop_check_running();
         let start = Instant::now();
         let outcome = self.tracker.track(frame, &map, queue)?;
         let tracking_ms = start.elapsed().as_secs_f64() * 1e3;
+        let loop_check_running = loop_check_at_start || self.loop_check_running();
         let mut mapping: Option<MappingSummary> = None;
         if let Some((kf, created)) = &outcome.new_keyframe {
             match &mut self.mapping {
@@ -556,12 +559,18 @@ impl SlamSystem {
                 mapping_ms,
             },
             mapping,
+            loop_check_running,
         });
         if matches!(self.mapping, Mapping::Inline(_)) {
             self.close_loops()?;
         }
         let last = self.records.len() - 1;
         Ok(&self.records[last])
+    }
+
+    /// Whether the loop-closing thread is checking a keyframe now.
+    fn loop_check_running(&self) -> bool {
+        matches!(&self.loop_closing, Some(LoopClosing::Thread(thread)) if thread.is_checking())
     }
 
     /// A monocular initialisation made a keyframe of an earlier frame:

@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""The soak run's figures (EVALUATION.md 'Soak'), from a `spslam run
+--memory-log` output folder (memory.csv, report.json):
+
+  tools/soak_table.py RUN_DIR [--write EVALUATION.md] [--plot-to PNG]
+
+Prints a markdown block: the run (commit, machine), tracking, loops, and
+the resident memory (RSS) and map size at the end of the first lap, at
+the middle and at the end; the RSS growth over the last half of the run
+(the issue's bound: within 5 % once the map stops growing). With --write,
+replaces the block between `<!-- soak: begin -->` and `<!-- soak: end -->`
+in that file; with --plot-to, copies memory.png there."""
+import argparse
+import csv
+import json
+import platform
+import shutil
+import subprocess
+
+FRAMES_PER_LAP = 232
+
+
+def machine() -> str:
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return f"{line.split(':', 1)[1].strip()}, {subprocess.check_output(['nproc']).decode().strip()} cores"
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def commit() -> str:
+    try:
+        return subprocess.check_output(["git", "rev-parse", "--short", "HEAD"]).decode().strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def at(rows, frame):
+    """The last sample at or before `frame`."""
+    best = rows[0]
+    for r in rows:
+        if r["frame"] <= frame:
+            best = r
+    return best
+
+
+def block(run_dir: str) -> str:
+    with open(f"{run_dir}/memory.csv") as f:
+        rows = [
+            {k: (float(v) if k == "rss_mib" else int(v)) for k, v in r.items()}
+            for r in csv.DictReader(f)
+        ]
+    with open(f"{run_dir}/report.json") as f:
+        report = json.load(f)
+    if not rows:
+        raise SystemExit(f"{run_dir}/memory.csv has no samples")
+    last = rows[-1]
+    half = last["frame"] // 2
+    tail = [r for r in rows if r["frame"] >= half]
+    start = at(rows, half)
+    rss_tail_max = max(r["rss_mib"] for r in tail)
+    rss_tail_min = min(r["rss_mib"] for r in tail)
+    growth = 100.0 * (last["rss_mib"] - start["rss_mib"]) / start["rss_mib"]
+    spread = 100.0 * (rss_tail_max - rss_tail_min) / rss_tail_min
+    summary = report["summary"]
+    ate = ((report.get("evaluation") or {}).get("ate") or {}).get("se3_rmse")
+    lap = at(rows, FRAMES_PER_LAP + 100 - FRAMES_PER_LAP % 100)
+    lines = [
+        f"- commit {commit()}, {machine()}; `{report['dataset']}`, {report['sensor']}, "
+        f"{report['extractor']}, {report['inference']}, mapping {report['mapping']}; "
+        f"{report['frames_processed']} of {report['frames_total']} frames ({report['end']}), "
+        f"{report['wall_ms_per_frame']:.0f} ms per frame",
+        f"- tracking: {json.dumps({k: summary[k] for k in ('tracked', 'lost', 'relocalisations') if k in summary})}; "
+        f"loops closed {len(report.get('loops') or [])}, merges {len(report.get('merges') or [])}, "
+        f"global BAs {len(report.get('global_ba') or [])}"
+        + (f"; ATE (SE3) {ate:.3f} m over {(report['evaluation'] or {}).get('path_length_m', 0):.0f} m" if ate is not None else ""),
+        "",
+        "| frames | RSS (MiB) | keyframes | map points | maps |",
+        "|---:|---:|---:|---:|---:|",
+    ]
+    for r in sorted({r["frame"]: r for r in (rows[0], lap, start, last)}.values(), key=lambda r: r["frame"]):
+        lines.append(
+            f"| {r['frame']} | {r['rss_mib']:.0f} | {r['keyframes']} | {r['map_points']} | {r['maps']} |"
+        )
+    lines += [
+        "",
+        f"- last {last['frame'] - start['frame']} frames: RSS {start['rss_mib']:.0f} → {last['rss_mib']:.0f} MiB "
+        f"({growth:+.1f} %), spread {spread:.1f} % (min {rss_tail_min:.0f}, max {rss_tail_max:.0f}); "
+        f"keyframes {start['keyframes']} → {last['keyframes']}, map points {start['map_points']} → {last['map_points']}",
+    ]
+    return "\n".join(lines)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("run_dir")
+    parser.add_argument("--write", help="a markdown file with the soak markers")
+    parser.add_argument("--plot-to", help="copy memory.png here")
+    args = parser.parse_args()
+    text = block(args.run_dir)
+    print(text)
+    if args.write:
+        begin, end = "<!-- soak: begin -->", "<!-- soak: end -->"
+        doc = open(args.write).read()
+        if begin not in doc or end not in doc:
+            raise SystemExit(f"{args.write} has no {begin} ... {end} block")
+        head, rest = doc.split(begin, 1)
+        _, tail = rest.split(end, 1)
+        open(args.write, "w").write(f"{head}{begin}\n{text}\n{end}{tail}")
+    if args.plot_to:
+        shutil.copyfile(f"{args.run_dir}/memory.png", args.plot_to)
+
+
+if __name__ == "__main__":
+    main()
