@@ -17,6 +17,7 @@ if [[ ! -f $seq/poses/00.txt ]] || [[ $(wc -l < "$seq/poses/00.txt") -ne $frames
     --no-depth --overwrite
 fi
 mkdir -p "$dir/run"
+git rev-parse --short HEAD > "$dir/run/commit.txt" 2>/dev/null || true
 $spslam run --dataset "synth:$seq" --out "$dir/run" \
   --memory-log "$dir/run/memory.csv" --memory-every 100
 python3 tools/soak_table.py "$dir/run"

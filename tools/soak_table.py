@@ -5,8 +5,8 @@
   tools/soak_table.py RUN_DIR [--write EVALUATION.md] [--plot-to PNG]
 
 Prints a markdown block: the run (commit, machine), tracking, loops, and
-the resident memory (RSS) and map size at the end of the first lap, at
-the middle and at the end; the RSS growth over the last half of the run
+the resident memory (RSS) and map size after the first 100 frames, the
+first lap and every 1,000 frames; the RSS growth over the last half of the run
 (the issue's bound: within 5 % once the map stops growing). With --write,
 replaces the block between `<!-- soak: begin -->` and `<!-- soak: end -->`
 in that file; with --plot-to, copies memory.png there."""
@@ -30,7 +30,12 @@ def machine() -> str:
     return platform.processor() or platform.machine()
 
 
-def commit() -> str:
+def commit(run_dir: str) -> str:
+    """The commit the run was made with (tools/soak.sh writes it), else HEAD's."""
+    try:
+        return open(f"{run_dir}/commit.txt").read().strip()
+    except OSError:
+        pass
     try:
         return subprocess.check_output(["git", "rev-parse", "--short", "HEAD"]).decode().strip()
     except (OSError, subprocess.CalledProcessError):
@@ -68,7 +73,7 @@ def block(run_dir: str) -> str:
     ate = ((report.get("evaluation") or {}).get("ate") or {}).get("se3_rmse")
     lap = at(rows, FRAMES_PER_LAP + 100 - FRAMES_PER_LAP % 100)
     lines = [
-        f"- commit {commit()}, {machine()}; `{report['dataset']}`, {report['sensor']}, "
+        f"- commit {commit(run_dir)}, {machine()}; `{report['dataset']}`, {report['sensor']}, "
         f"{report['extractor']}, {report['inference']}, mapping {report['mapping']}; "
         f"{report['frames_processed']} of {report['frames_total']} frames ({report['end']}), "
         f"{report['wall_ms_per_frame']:.0f} ms per frame",
@@ -80,7 +85,8 @@ def block(run_dir: str) -> str:
         "| frames | RSS (MiB) | keyframes | map points | maps |",
         "|---:|---:|---:|---:|---:|",
     ]
-    for r in sorted({r["frame"]: r for r in (rows[0], lap, start, last)}.values(), key=lambda r: r["frame"]):
+    picked = [rows[0], lap, start, last] + [r for r in rows if r["frame"] % 1000 == 0]
+    for r in sorted({r["frame"]: r for r in picked}.values(), key=lambda r: r["frame"]):
         lines.append(
             f"| {r['frame']} | {r['rss_mib']:.0f} | {r['keyframes']} | {r['map_points']} | {r['maps']} |"
         )

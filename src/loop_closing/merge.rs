@@ -16,6 +16,7 @@
 //! loop correction fuses the duplicates).
 
 use std::collections::{BTreeMap, HashSet};
+use std::ops::Deref;
 
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
@@ -103,20 +104,27 @@ impl MergeDetector {
         self.streak = None;
     }
 
-    /// Checks keyframe `kf` of `active`, with global descriptor
-    /// `descriptor`, against the archived maps (`maps`: tag → map; a tag
-    /// without a map is skipped).
-    pub fn process(
+    /// Checks keyframe `kf` of the active map, with global descriptor
+    /// `descriptor`, against the archived maps. The maps are read through
+    /// `read_active` and `read_archived` (tag → map, `None`: skipped), once
+    /// per step: each database query and each candidate's check takes its
+    /// own short read locks, so that local mapping and tracking never wait
+    /// for more than one step of the merge check.
+    pub fn process<A, O>(
         &mut self,
-        active: &Map,
+        read_active: impl Fn() -> Result<A, SlamError>,
         kf: KeyFrameId,
         descriptor: &[f32],
-        maps: &BTreeMap<usize, &Map>,
+        read_archived: impl Fn(usize) -> Option<Result<O, SlamError>>,
         rig: &CameraRig,
-    ) -> Result<MergeOutcome, SlamError> {
+    ) -> Result<MergeOutcome, SlamError>
+    where
+        A: Deref<Target = Map>,
+        O: Deref<Target = Map>,
+    {
         let th = self.thresholds;
         let mut outcome = MergeOutcome::default();
-        if active.keyframe_count() < th.min_keyframes {
+        if read_active()?.keyframe_count() < th.min_keyframes {
             return Ok(outcome);
         }
         let mut candidates: Vec<(f32, usize, KeyFrameId)> = Vec::new();
@@ -126,7 +134,7 @@ impl MergeDetector {
             ..QueryOptions::default()
         };
         for (tag, database) in &self.archived {
-            let Some(map) = maps.get(tag) else {
+            let Some(map) = read_archived(*tag).transpose()? else {
                 continue;
             };
             let found = database
@@ -142,10 +150,14 @@ impl MergeDetector {
         candidates.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         candidates.truncate(th.candidates);
         for (score, tag, candidate) in candidates {
-            let Some(map) = maps.get(&tag) else {
+            let Some(map) = read_archived(tag).transpose()? else {
                 continue;
             };
-            let checked = match check_candidate(active, kf, map, (candidate, score), rig, &th)? {
+            // A candidate culled since the query is rejected by the check.
+            let active = read_active()?;
+            let checked = check_candidate(&active, kf, &map, (candidate, score), rig, &th)?;
+            drop((active, map));
+            let checked = match checked {
                 Ok(checked) => checked,
                 Err(record) => {
                     outcome.rejected.extend(record.map(|r| (tag, r)));

@@ -227,16 +227,26 @@ impl LoopClosingStage {
         let Some(descriptor) = outcome.descriptor else {
             return Ok(step);
         };
-        let mut guards = BTreeMap::new();
-        for (index, other) in others {
-            guards.insert(*index, other.read().map_err(|_| SlamError::PoisonedMap)?);
-        }
-        let older: BTreeMap<usize, &Map> = guards.iter().map(|(i, g)| (*i, &**g)).collect();
-        let outcome = self.merger.process(&map, kf, &descriptor, &older, rig)?;
+        drop(map);
+        // The same for the merge check: short read locks per step, on the
+        // active map and on the older map at hand.
+        let read_other = |tag: usize| {
+            others
+                .get(&tag)
+                .map(|m| m.read().map_err(|_| SlamError::PoisonedMap))
+        };
+        let outcome = self
+            .merger
+            .process(read, kf, &descriptor, read_other, rig)?;
+        let map = read()?;
         for (tag, r) in outcome.rejected {
+            let candidate_frame = match read_other(tag) {
+                Some(other) => frame_of(&*other?, r.candidate),
+                None => 0,
+            };
             step.rejected.push(RejectedLoopRecord {
                 query_frame: frame_of(&map, r.query),
-                candidate_frame: older.get(&tag).map_or(0, |m| frame_of(m, r.candidate)),
+                candidate_frame,
                 score: r.score,
                 stage: r.stage,
                 count: r.count,
