@@ -15,7 +15,9 @@ mode=${1:-short}
 shift || true
 
 export SPSLAM_FUZZ_TINY_MODEL="$PWD/target/tiny_superpoint.onnx"
-mkdir -p target corpus/c_abi artifacts
+mkdir -p target corpus/c_abi artifacts target/seeds
+# seeds.tar.gz: a minimised corpus (-merge=1) of earlier runs, the start.
+tar -xzf seeds.tar.gz -C target/seeds
 [[ -f "$SPSLAM_FUZZ_TINY_MODEL" ]] || ../.deps/venv/bin/python make_tiny_model.py "$SPSLAM_FUZZ_TINY_MODEL"
 
 flags="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4"
@@ -44,10 +46,13 @@ export LSAN_OPTIONS="suppressions=$PWD/target/lsan.supp:print_suppressions=0"
 export ASAN_OPTIONS="detect_leaks=1:allocator_may_return_null=1"
 
 # The crashers found so far (fixed) replay first: regression tests.
-if compgen -G "regressions/*" > /dev/null; then
-  "$bin" -runs=1 regressions/*
+regressions=(regressions/crash-* regressions/leak-* regressions/oom-* regressions/timeout-*)
+existing=()
+for f in "${regressions[@]}"; do [[ -f $f ]] && existing+=("$f"); done
+if (( ${#existing[@]} )); then
+  "$bin" -runs=1 "${existing[@]}"
 fi
 case "$mode" in
-  short) "$bin" -max_total_time=60 -print_final_stats=1 -artifact_prefix=artifacts/ corpus/c_abi seeds ;;
-  long) "$bin" -print_final_stats=1 -artifact_prefix=artifacts/ "$@" corpus/c_abi seeds ;;
+  short) "$bin" -max_len=1024 -max_total_time=60 -print_final_stats=1 -artifact_prefix=artifacts/ corpus/c_abi target/seeds ;;
+  long) "$bin" -max_len=1024 -print_final_stats=1 -artifact_prefix=artifacts/ "$@" corpus/c_abi target/seeds ;;
 esac

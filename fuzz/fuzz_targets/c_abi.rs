@@ -111,7 +111,9 @@ enum Geometry {
         height: Size,
         stride: Size,
     },
-    /// 16..=127 × 16..=127 pixels, rows `padding % 8` bytes longer.
+    /// 16..=79 × 16..=79 pixels, rows `padding % 8` bytes longer (small:
+    /// the code paths are the same at any size, and small images keep an
+    /// input at about a millisecond).
     Fitting { width: u8, height: u8, padding: u8 },
 }
 
@@ -130,7 +132,7 @@ impl Geometry {
                 (buffer, claimed_len.value().min(buffer), width.value(), height.value(), stride.value())
             }
             Geometry::Fitting { width, height, padding } => {
-                let (w, h) = (16 + width as usize % 112, 16 + height as usize % 112);
+                let (w, h) = (16 + width as usize % 64, 16 + height as usize % 64);
                 let stride = w + padding as usize % 8;
                 let len = stride * (h - 1) + w;
                 (len, len, w, h, stride)
