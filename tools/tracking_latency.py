@@ -10,7 +10,10 @@ local mapping run elsewhere). Frames are split by `loop_check_running`
 (the loop-closing thread was retrieving or verifying candidates when the
 frame's tracking started or ended). The target: the 95th percentile of
 the frames tracked during a check within 1.5x the median of all frames.
-The first N frames (default 0) are left out."""
+The first N frames (default 0) are left out. `lock_wait_ms` is the
+part of a frame's tracking spent waiting for the map's locks: what loop
+detection (or local mapping) holding them costs tracking, apart from
+sharing the CPU."""
 import argparse
 import json
 import statistics
@@ -36,22 +39,29 @@ def main():
         raise SystemExit(f"{args.report}: no tracked frames with `loop_check_running` (an older spslam?)")
     ms = lambda r: r["timings"]["stereo_ms"] + r["timings"]["tracking_ms"]
     everything = [ms(r) for r in frames]
-    during = [ms(r) for r in frames if r["loop_check_running"]]
-    outside = [ms(r) for r in frames if not r["loop_check_running"]]
     median_all = statistics.median(everything)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip()
     print(f"`{report['dataset']}`, {report['frames_processed']} frames, {report['inference']}, mapping {report['mapping']}; commit {commit}")
     print()
-    print("| frames | count | median (ms) | p95 (ms) | p95 / median of all |")
-    print("|---|---:|---:|---:|---:|")
-    for name, values in (("all tracked", everything), ("loop check running", during), ("no loop check", outside)):
+    wait = lambda r: r["timings"].get("lock_wait_ms", float("nan"))
+    groups = (
+        ("all tracked", frames),
+        ("loop check running", [r for r in frames if r["loop_check_running"]]),
+        ("no loop check", [r for r in frames if not r["loop_check_running"]]),
+    )
+    print("| frames | count | median (ms) | p95 (ms) | p95 / median of all | lock wait: median, p95, max (ms) |")
+    print("|---|---:|---:|---:|---:|---|")
+    for name, group in groups:
+        values = [ms(r) for r in group]
         if values:
+            waits = [wait(r) for r in group]
             print(
                 f"| {name} | {len(values)} | {statistics.median(values):.1f} | {percentile(values, 0.95):.1f} | "
-                f"{percentile(values, 0.95) / median_all:.2f} |"
+                f"{percentile(values, 0.95) / median_all:.2f} | "
+                f"{statistics.median(waits):.2f}, {percentile(waits, 0.95):.2f}, {max(waits):.1f} |"
             )
         else:
-            print(f"| {name} | 0 | – | – | – |")
+            print(f"| {name} | 0 | – | – | – | – |")
 
 
 if __name__ == "__main__":

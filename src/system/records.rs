@@ -18,6 +18,9 @@ pub struct FrameTimings {
     pub stereo_ms: f64,
     /// Tracking (all of it, keyframe insertion included).
     pub tracking_ms: f64,
+    /// The part of `tracking_ms` spent waiting for the map's locks (held
+    /// by local mapping or loop detection meanwhile).
+    pub lock_wait_ms: f64,
     /// Local mapping (0 on frames without a new keyframe, and with local
     /// mapping on its thread, where it is reported under its keyframe's frame).
     pub mapping_ms: f64,

@@ -556,6 +556,7 @@ impl SlamSystem {
                 extraction_ms,
                 stereo_ms,
                 tracking_ms,
+                lock_wait_ms: self.tracker.last_lock_wait_ms(),
                 mapping_ms,
             },
             mapping,

@@ -152,6 +152,7 @@ impl SlamSystem {
             sum.extraction_ms += r.timings.extraction_ms;
             sum.stereo_ms += r.timings.stereo_ms;
             sum.tracking_ms += r.timings.tracking_ms;
+            sum.lock_wait_ms += r.timings.lock_wait_ms;
             sum.mapping_ms += r.timings.mapping_ms;
         }
         let n = self.records.len().max(1) as f64;
@@ -159,6 +160,7 @@ impl SlamSystem {
             extraction_ms: sum.extraction_ms / n,
             stereo_ms: sum.stereo_ms / n,
             tracking_ms: sum.tracking_ms / n,
+            lock_wait_ms: sum.lock_wait_ms / n,
             mapping_ms: sum.mapping_ms / n,
         };
         Ok(s)

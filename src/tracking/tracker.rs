@@ -2,6 +2,7 @@
 //! keyframe, relocalisation), track the local map, decide on keyframes.
 
 use std::sync::Arc;
+use std::time::Instant;
 
 use crate::map::{KeyFrameId, Map, MapPointId, SharedMap};
 use crate::optim::{LieGroup, Se3};
@@ -83,6 +84,8 @@ pub struct Tracker {
     localisation_only: bool,
     /// The monocular initialiser's reference frame (monocular only).
     mono_init: MonoInitialiser,
+    /// Milliseconds the last `track` waited for the map's locks.
+    lock_wait_ms: f64,
 }
 
 /// Seconds of failed relocalisation after which tracking gives the map up
@@ -115,6 +118,7 @@ impl Tracker {
             max_frames: rig.fps.round().max(1.0) as usize,
             relocalisation_candidates: None,
             localisation_only: false,
+            lock_wait_ms: 0.0,
             mono_init: MonoInitialiser::default(),
         }
     }
@@ -188,19 +192,20 @@ impl Tracker {
         map: &SharedMap,
         mapping_queue: usize,
     ) -> Result<TrackOutcome, SlamError> {
+        self.lock_wait_ms = 0.0;
         if self.state == TrackingState::NotInitialised {
-            let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
+            let mut map = self.timed(|| map.write())?;
             return self.initialise(frame, &mut map);
         }
         let (frame, mut outcome, wants_keyframe) = {
-            let map = map.read().map_err(|_| SlamError::PoisonedMap)?;
+            let map = self.timed(|| map.read())?;
             self.track_under_read_lock(frame, &map, mapping_queue)?
         };
         let Some(mut frame) = frame else {
             return Ok(outcome);
         };
         if wants_keyframe && !self.localisation_only {
-            let mut map = map.write().map_err(|_| SlamError::PoisonedMap)?;
+            let mut map = self.timed(|| map.write())?;
             let (kf, created) = insert_keyframe(&mut frame, &mut map, &self.rig)?;
             self.reference = Some(kf);
             self.last_keyframe_frame = frame.index;
@@ -209,6 +214,20 @@ impl Tracker {
         }
         self.keep_last(frame, outcome.relative_pose);
         Ok(outcome)
+    }
+
+    /// Takes a map lock, adding the wait to [`Self::last_lock_wait_ms`].
+    fn timed<G, E>(&mut self, lock: impl FnOnce() -> Result<G, E>) -> Result<G, SlamError> {
+        let start = Instant::now();
+        let guard = lock().map_err(|_| SlamError::PoisonedMap);
+        self.lock_wait_ms += start.elapsed().as_secs_f64() * 1e3;
+        guard
+    }
+
+    /// How long the last [`Self::track`] waited for the map's locks, in
+    /// milliseconds (local mapping or loop detection held them).
+    pub fn last_lock_wait_ms(&self) -> f64 {
+        self.lock_wait_ms
     }
 
     /// Tracks `frame` against `map` (read only) and decides on a keyframe.
