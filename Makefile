@@ -84,6 +84,7 @@ evaluate: build
 
 lint: setup
 	$(CARGO) fmt --check
+	$(CARGO) fmt --check --manifest-path fuzz/Cargo.toml
 	$(CARGO) clippy --release --all-targets -- -D warnings
 
 test-rust: build

@@ -129,9 +129,19 @@ impl Geometry {
                 stride,
             } => {
                 let buffer = buffer_len as usize % (16 * 1024 + 1);
-                (buffer, claimed_len.value().min(buffer), width.value(), height.value(), stride.value())
+                (
+                    buffer,
+                    claimed_len.value().min(buffer),
+                    width.value(),
+                    height.value(),
+                    stride.value(),
+                )
             }
-            Geometry::Fitting { width, height, padding } => {
+            Geometry::Fitting {
+                width,
+                height,
+                padding,
+            } => {
                 let (w, h) = (16 + width as usize % 64, 16 + height as usize % 64);
                 let stride = w + padding as usize % 8;
                 let len = stride * (h - 1) + w;
@@ -417,7 +427,11 @@ fn run(op: &Op, handles: &mut Handles) {
         }
         Op::ConfigDefault { null_out } => {
             let mut c = std::mem::MaybeUninit::<SpslamConfig>::uninit();
-            let out = if null_out { ptr::null_mut() } else { c.as_mut_ptr() };
+            let out = if null_out {
+                ptr::null_mut()
+            } else {
+                c.as_mut_ptr()
+            };
             check_status(unsafe { spslam_config_default(out) }, "config_default");
         }
         Op::ConfigFromOrbSlam3 {
@@ -429,7 +443,11 @@ fn run(op: &Op, handles: &mut Handles) {
             null_out,
         } => {
             let mut c = std::mem::MaybeUninit::<SpslamConfig>::uninit();
-            let out = if null_out { ptr::null_mut() } else { c.as_mut_ptr() };
+            let out = if null_out {
+                ptr::null_mut()
+            } else {
+                c.as_mut_ptr()
+            };
             let status = unsafe {
                 spslam_config_from_orb_slam3(
                     nfeatures,
@@ -450,7 +468,11 @@ fn run(op: &Op, handles: &mut Handles) {
             let c = c_config(config);
             let config_ptr: *const SpslamConfig = if null_config { ptr::null() } else { &c };
             let mut handle = ptr::null_mut();
-            let out = if null_out { ptr::null_mut() } else { &mut handle };
+            let out = if null_out {
+                ptr::null_mut()
+            } else {
+                &mut handle
+            };
             let status = unsafe { spslam_extractor_create(config_ptr, out) };
             check_status(status, "extractor_create");
             if status == SpslamStatus::Ok {
@@ -475,9 +497,17 @@ fn run(op: &Op, handles: &mut Handles) {
         } => {
             let (buffer_len, data_len, width, height, stride) = geometry.resolve();
             let buffer = pixels(buffer_len, fill);
-            let data = if null_data { ptr::null() } else { buffer.as_ptr() };
+            let data = if null_data {
+                ptr::null()
+            } else {
+                buffer.as_ptr()
+            };
             let mut features = ptr::null_mut();
-            let out = if null_out { ptr::null_mut() } else { &mut features };
+            let out = if null_out {
+                ptr::null_mut()
+            } else {
+                &mut features
+            };
             let status = unsafe {
                 spslam_extract(
                     handles.extractor(extractor),
@@ -501,13 +531,20 @@ fn run(op: &Op, handles: &mut Handles) {
                 EXTRACTED.fetch_add(1, Ordering::Relaxed);
                 KEYPOINTS.fetch_add(view.count, Ordering::Relaxed);
                 if view.count > 0 {
-                    let keypoints = unsafe { std::slice::from_raw_parts(view.keypoints, view.count) };
+                    let keypoints =
+                        unsafe { std::slice::from_raw_parts(view.keypoints, view.count) };
                     let descriptors = unsafe {
-                        std::slice::from_raw_parts(view.descriptors, view.count * view.descriptor_len)
+                        std::slice::from_raw_parts(
+                            view.descriptors,
+                            view.count * view.descriptor_len,
+                        )
                     };
                     let (w, h) = (width as f32, height as f32);
                     for k in keypoints {
-                        assert!(k.x >= 0.0 && k.x < w && k.y >= 0.0 && k.y < h, "{k:?} outside {w}x{h}");
+                        assert!(
+                            k.x >= 0.0 && k.x < w && k.y >= 0.0 && k.y < h,
+                            "{k:?} outside {w}x{h}"
+                        );
                     }
                     assert!(descriptors.iter().all(|v| v.is_finite()));
                 }
@@ -517,18 +554,31 @@ fn run(op: &Op, handles: &mut Handles) {
         }
         Op::View { features, null_out } => {
             let mut view = std::mem::MaybeUninit::<SpslamFeaturesView>::uninit();
-            let out = if null_out { ptr::null_mut() } else { view.as_mut_ptr() };
-            check_status(unsafe { spslam_features_view(handles.features(features), out) }, "features_view");
+            let out = if null_out {
+                ptr::null_mut()
+            } else {
+                view.as_mut_ptr()
+            };
+            check_status(
+                unsafe { spslam_features_view(handles.features(features), out) },
+                "features_view",
+            );
         }
         Op::BinaryView { features, null_out } => {
             let mut view = std::mem::MaybeUninit::<SpslamBinaryView>::uninit();
-            let out = if null_out { ptr::null_mut() } else { view.as_mut_ptr() };
+            let out = if null_out {
+                ptr::null_mut()
+            } else {
+                view.as_mut_ptr()
+            };
             let status = unsafe { spslam_features_binary_view(handles.features(features), out) };
             check_status(status, "features_binary_view");
             if status == SpslamStatus::Ok {
                 let view = unsafe { view.assume_init() };
                 if view.count > 0 {
-                    let bytes = unsafe { std::slice::from_raw_parts(view.data, view.count * view.bytes_per_row) };
+                    let bytes = unsafe {
+                        std::slice::from_raw_parts(view.data, view.count * view.bytes_per_row)
+                    };
                     std::hint::black_box(bytes.iter().map(|&b| b as u32).sum::<u32>());
                 }
             }
@@ -536,28 +586,47 @@ fn run(op: &Op, handles: &mut Handles) {
         Op::Count { features, null_out } => {
             let mut n = 0usize;
             let out = if null_out { ptr::null_mut() } else { &mut n };
-            check_status(unsafe { spslam_features_count(handles.features(features), out) }, "features_count");
+            check_status(
+                unsafe { spslam_features_count(handles.features(features), out) },
+                "features_count",
+            );
         }
         Op::DestroyFeatures(choice) => {
             let h = handles.features(choice);
             unsafe { spslam_features_destroy(h) };
             handles.forget_features(h);
         }
-        Op::DescriptorLen { extractor, null_out } => {
+        Op::DescriptorLen {
+            extractor,
+            null_out,
+        } => {
             let mut n = 0usize;
             let out = if null_out { ptr::null_mut() } else { &mut n };
-            let status = unsafe { spslam_extractor_descriptor_len(handles.extractor(extractor), out) };
+            let status =
+                unsafe { spslam_extractor_descriptor_len(handles.extractor(extractor), out) };
             check_status(status, "extractor_descriptor_len");
         }
-        Op::Device { extractor, null_out } => {
+        Op::Device {
+            extractor,
+            null_out,
+        } => {
             let mut d = 0i32;
             let out = if null_out { ptr::null_mut() } else { &mut d };
-            check_status(unsafe { spslam_extractor_device(handles.extractor(extractor), out) }, "extractor_device");
+            check_status(
+                unsafe { spslam_extractor_device(handles.extractor(extractor), out) },
+                "extractor_device",
+            );
         }
-        Op::Levels { extractor, null_out } => {
+        Op::Levels {
+            extractor,
+            null_out,
+        } => {
             let mut n = 0usize;
             let out = if null_out { ptr::null_mut() } else { &mut n };
-            check_status(unsafe { spslam_extractor_levels(handles.extractor(extractor), out) }, "extractor_levels");
+            check_status(
+                unsafe { spslam_extractor_levels(handles.extractor(extractor), out) },
+                "extractor_levels",
+            );
         }
         Op::ScaleTables {
             extractor,
@@ -565,9 +634,16 @@ fn run(op: &Op, handles: &mut Handles) {
             null_arrays,
         } => {
             let n = capacity as usize;
-            let (mut a, mut b, mut c, mut d) = (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+            let (mut a, mut b, mut c, mut d) =
+                (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
             let mut e = vec![0i32; n];
-            let or_null = |bit: u8, p: *mut f32| if null_arrays & (1 << bit) != 0 { ptr::null_mut() } else { p };
+            let or_null = |bit: u8, p: *mut f32| {
+                if null_arrays & (1 << bit) != 0 {
+                    ptr::null_mut()
+                } else {
+                    p
+                }
+            };
             let status = unsafe {
                 spslam_extractor_scale_tables(
                     handles.extractor(extractor),
@@ -576,7 +652,11 @@ fn run(op: &Op, handles: &mut Handles) {
                     or_null(1, b.as_mut_ptr()),
                     or_null(2, c.as_mut_ptr()),
                     or_null(3, d.as_mut_ptr()),
-                    if null_arrays & 16 != 0 { ptr::null_mut() } else { e.as_mut_ptr() },
+                    if null_arrays & 16 != 0 {
+                        ptr::null_mut()
+                    } else {
+                        e.as_mut_ptr()
+                    },
                 )
             };
             check_status(status, "extractor_scale_tables");
