@@ -346,7 +346,10 @@ impl From<FeatureError> for FfiError {
 
 fn set_last_error(message: &str) {
     let text = CString::new(message.replace('\0', " ")).unwrap_or_default();
-    LAST_ERROR.with(|e| *e.borrow_mut() = text);
+    // `try_with`: a destroy call from an exit handler (ORB-SLAM3's static
+    // objects, Python's finalisation) may come after this thread's locals
+    // were destroyed; the message is then dropped, never a panic.
+    let _ = LAST_ERROR.try_with(|e| *e.borrow_mut() = text);
 }
 
 /// Runs `body`, catching panics, and turns its outcome into a status plus the
@@ -547,7 +550,9 @@ pub extern "C" fn spslam_version() -> *const c_char {
 /// `spslam_*` call on this thread (copy it to keep it).
 #[no_mangle]
 pub extern "C" fn spslam_last_error() -> *const c_char {
-    LAST_ERROR.with(|e| e.borrow().as_ptr())
+    LAST_ERROR
+        .try_with(|e| e.borrow().as_ptr())
+        .unwrap_or(c"".as_ptr())
 }
 
 /// Fills `out` with the default configuration (1000 keypoints, one level,
