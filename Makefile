@@ -10,7 +10,7 @@ export SPSLAM_DATA
 PYTHON := .deps/venv/bin/python
 OUT ?= out
 
-.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint bench-homography
+.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint train-superpoint-lite bench-homography
 
 all: build
 
@@ -48,6 +48,11 @@ setup-train: setup
 
 train-superpoint: setup-train
 	bash tools/train/train_superpoint.sh
+
+# SuperPoint-Lite (`--model lite`), distilled from models/superpoint_photo.pth
+# (tools/train/README.md); GPU when PyTorch sees one, else a smaller CPU run.
+train-superpoint-lite: setup-train
+	bash tools/train/train_superpoint_lite.sh
 
 # The homography benchmark (tools/bench_homography.py) of the shipped model
 # and MODEL (an int8 ONNX file) on IMAGES (files or folders).

