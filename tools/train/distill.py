@@ -263,7 +263,7 @@ def main(argv=None) -> int:
         writer.writerow(row + [f"{time.time() - t0:.1f}"])
         if bar is not None:
             bar.update(1)
-            bar.set_postfix({k: v for k, v in zip(["kl", "1-cos"], row[2:4])})
+            bar.set_postfix({k: v for k, v in zip(["kl", "1-cos"], row[2:4])}, refresh=False)
         if step % args.checkpoint_every == 0:
             log.flush()
             save_checkpoint(ckpt_path, students, optimisers, step, args)

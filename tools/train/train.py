@@ -302,7 +302,7 @@ def main(argv=None) -> int:
                          f"{dl.item():.5f}", f"{acc:.4f}", f"{time.time() - t0:.1f}"])
         if bar is not None:
             bar.update(1)
-            bar.set_postfix(det=f"{det.item():.3f}", desc=f"{dl.item():.3f}", acc=f"{acc:.2f}")
+            bar.set_postfix(det=f"{det.item():.3f}", desc=f"{dl.item():.3f}", acc=f"{acc:.2f}", refresh=False)
         if step % args.checkpoint_every == 0:
             log.flush()
             save_checkpoint(ckpt_path, net, opt, step, args)
