@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import math
 import os
 import sys
 import time
@@ -48,6 +47,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from homography import HomographyRange, photometric, sample_homographies, warp_images  # noqa: E402
 from labels import load_gray, read_index  # noqa: E402
 from model import SuperPoint, build_student, save_weights, sliced_from  # noqa: E402
+from train import lr_at  # noqa: E402  (the same schedule as the fine-tuning)
 
 HELD_OUT_SHARE = 0.05
 
@@ -119,14 +119,6 @@ def teacher_targets(teacher: SuperPoint, views: torch.Tensor, autocast: bool):
     prob = F.softmax(logits.float(), dim=1)
     weight = 0.25 + (1 - prob[:, -1])
     return prob, F.normalize(desc.float(), dim=1), weight
-
-
-def lr_at(step: int, args) -> float:
-    """Linear warm-up, then cosine decay to 1% of --lr at --steps."""
-    if step < args.warmup:
-        return args.lr * (step + 1) / args.warmup
-    t = (step - args.warmup) / max(1, args.steps - args.warmup)
-    return args.lr * (0.01 + 0.99 * 0.5 * (1 + math.cos(math.pi * min(1.0, t))))
 
 
 @torch.no_grad()
