@@ -18,6 +18,23 @@ pub enum SlamError {
         #[source]
         source: FeatureError,
     },
+    /// An extractor could not be created (a missing model or runtime
+    /// library, a bad setting).
+    #[error("cannot create the extractor: {source}")]
+    Extractor {
+        /// What the extractor said.
+        #[source]
+        source: FeatureError,
+    },
+    /// The loop-closing codebook cannot be used with this extractor.
+    #[error("cannot use the loop-closing codebook {}: {source} (train one with `spslam vocab train --format vlad`, or turn loop closing off)", path.display())]
+    Codebook {
+        /// The codebook file.
+        path: std::path::PathBuf,
+        /// What place recognition said.
+        #[source]
+        source: crate::place::PlaceError,
+    },
     /// A matcher rejected its input.
     #[error("matching failed ({stage}): {source}")]
     Matching {

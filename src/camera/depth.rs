@@ -103,6 +103,23 @@ impl DepthImage {
         })
     }
 
+    /// A depth image from raw values held in memory (16-bit or float, as a
+    /// depth PNG or EXR holds them), divided by `factor` exactly as
+    /// [`Self::load`] divides a file's.
+    pub fn from_raw<T: Copy + Into<f32>>(
+        values: &[T],
+        width: usize,
+        height: usize,
+        factor: f64,
+    ) -> Result<Self, DepthError> {
+        if !(factor.is_finite() && factor > 0.0) {
+            return Err(DepthError::InvalidFactor(factor));
+        }
+        let scale = (1.0 / factor) as f32;
+        let metres = values.iter().map(|&v| v.into() * scale).collect();
+        Self::from_metres(metres, width, height)
+    }
+
     /// Reads a depth image: 16-bit values divided by `factor` (ORB-SLAM3's
     /// `DepthMapFactor`: `mImDepth.convertTo(CV_32F, 1/factor)`), or 32-bit
     /// float values divided by it. The median valid depth must be

@@ -72,6 +72,20 @@ pub enum EvalError {
         /// Stamps in the estimate.
         estimate: usize,
     },
+    /// A pose matrix given in memory whose 3×3 part is not a rotation.
+    #[error("pose {index}: the 3×3 part is not a rotation (determinant ≤ 0 or not finite)")]
+    NotARotation {
+        /// The pose's index.
+        index: usize,
+    },
+    /// Timestamps given in memory that are not one per pose.
+    #[error("{stamps} timestamps for {poses} poses")]
+    StampCount {
+        /// Timestamps given.
+        stamps: usize,
+        /// Poses given.
+        poses: usize,
+    },
     /// The point sets are degenerate (fewer than two independent directions), so no alignment exists.
     #[error("degenerate point sets ({points} points): Umeyama alignment is not possible")]
     DegenerateAlignment {

@@ -128,6 +128,38 @@ pub fn read_kitti(path: &Path) -> Result<Trajectory> {
     Ok(trajectory)
 }
 
+/// A trajectory from 4×4 (or 3×4 padded) pose matrices held in memory, each
+/// rotation made orthonormal as [`read_kitti`] does (the matrices are kept
+/// as the raw ones for the KITTI metric); `timestamps` default to the
+/// frame indices.
+pub fn trajectory_from_matrices(
+    matrices: Vec<Matrix4<f64>>,
+    timestamps: Option<Vec<f64>>,
+) -> Result<Trajectory> {
+    let mut poses = Vec::with_capacity(matrices.len());
+    for (index, matrix) in matrices.iter().enumerate() {
+        let m: Matrix3<f64> = matrix.fixed_view::<3, 3>(0, 0).into_owned();
+        let finite = matrix.iter().all(|v| v.is_finite());
+        if !finite || m.determinant() <= 0.0 {
+            return Err(EvalError::NotARotation { index });
+        }
+        let translation = Translation3::new(matrix[(0, 3)], matrix[(1, 3)], matrix[(2, 3)]);
+        poses.push(Isometry3::from_parts(translation, nearest_rotation(&m)));
+    }
+    let mut trajectory = match timestamps {
+        Some(stamps) if stamps.len() != poses.len() => {
+            return Err(EvalError::StampCount {
+                stamps: stamps.len(),
+                poses: poses.len(),
+            })
+        }
+        Some(stamps) => Trajectory::new(stamps, poses),
+        None => Trajectory::from_poses(poses),
+    };
+    trajectory.raw_matrices = Some(matrices);
+    Ok(trajectory)
+}
+
 /// Reads a KITTI pose file and its times file (one stamp in seconds a line).
 pub fn read_kitti_with_times(path: &Path, times: &Path) -> Result<Trajectory> {
     let mut trajectory = read_kitti(path)?;

@@ -25,8 +25,8 @@ pub use bar_plot::{write_grouped_bar_plot, BarSeries};
 pub use error::{EvalError, Result};
 pub use format::TrajectoryFormat;
 pub use io::{
-    read_euroc, read_kitti, read_kitti_with_times, read_trajectory, read_tum, write_euroc,
-    write_kitti, write_trajectory, write_tum,
+    read_euroc, read_kitti, read_kitti_with_times, read_trajectory, read_tum,
+    trajectory_from_matrices, write_euroc, write_kitti, write_trajectory, write_tum,
 };
 pub use kitti_metric::{kitti_metric, KittiMetric, LengthError, SegmentError};
 pub use line_plot::{write_line_panels, LinePanel, LineSeries};

@@ -151,7 +151,7 @@ impl Default for ExtractorConfig {
 }
 
 /// The fp32 model used when none is given: `SPSLAM_MODEL`, else
-/// `models/superpoint.onnx` under the crate root (where `make setup` writes it).
+/// `superpoint.onnx` in the models folder (`SPSLAM_MODELS_DIR`, else `models/` in the crate root, where `make setup` writes it).
 pub fn default_model_path() -> PathBuf {
     Precision::Fp32.default_model_path()
 }

@@ -173,6 +173,59 @@ impl GrayImage {
         Self::from_vec(data, width, height)
     }
 
+    /// Converts a contiguous row-major colour image of `channels` (3 or 4)
+    /// interleaved bytes per pixel to gray with OpenCV's weights (as
+    /// `cv2.cvtColor` does): `bgr` says whether the channels are in OpenCV's
+    /// order (BGR/BGRA, as `cv2.imread` gives) or RGB/RGBA.
+    pub fn from_interleaved(
+        data: &[u8],
+        width: usize,
+        height: usize,
+        channels: usize,
+        bgr: bool,
+    ) -> Result<Self, FeatureError> {
+        use opencv::core::{CV_8UC3, CV_8UC4};
+        let typ = match channels {
+            3 => CV_8UC3,
+            4 => CV_8UC4,
+            other => {
+                return Err(FeatureError::UnsupportedImageType(format!(
+                    "{other} channels (give 1, 3 or 4)"
+                )))
+            }
+        };
+        if width == 0 || height == 0 {
+            return Err(FeatureError::EmptyImage { width, height });
+        }
+        let needed = width * height * channels;
+        if data.len() < needed {
+            return Err(FeatureError::BufferTooSmall {
+                required: needed,
+                actual: data.len(),
+                width,
+                height,
+                stride: width * channels,
+            });
+        }
+        let code = match (channels, bgr) {
+            (3, true) => opencv::imgproc::COLOR_BGR2GRAY,
+            (3, false) => opencv::imgproc::COLOR_RGB2GRAY,
+            (_, true) => opencv::imgproc::COLOR_BGRA2GRAY,
+            (_, false) => opencv::imgproc::COLOR_RGBA2GRAY,
+        };
+        let flat = Mat::from_slice(&data[..needed])?;
+        let colour = flat.reshape(channels as i32, height as i32)?;
+        if colour.typ() != typ {
+            return Err(FeatureError::UnsupportedImageType(format!(
+                "{channels} channels reshaped to {}",
+                opencv::core::type_to_string(colour.typ())?
+            )));
+        }
+        let mut gray = Mat::default();
+        opencv::imgproc::cvt_color_def(&colour, &mut gray, code)?;
+        Self::from_mat(&gray)
+    }
+
     /// Wraps the pixels in an OpenCV matrix (a copy).
     pub fn to_mat(&self) -> Result<Mat, FeatureError> {
         let flat = Mat::from_slice(&self.data)?;

@@ -68,13 +68,12 @@ impl Precision {
         ModelWeights::named_by_variables(read(self).as_deref(), read(other).as_deref())
     }
 
-    /// The file under `models/` (in the crate root, where `make setup` writes
-    /// it) of the named `weights` at this precision; the environment
-    /// variables are not consulted (a named model is what was asked for).
-    /// On an x86-64 CPU without VNNI the int8 file is the 7-bit one when it
-    /// exists.
+    /// The file in the [models folder](models_dir) of the named `weights` at
+    /// this precision; the model variables are not consulted (a named model
+    /// is what was asked for). On an x86-64 CPU without VNNI the int8 file
+    /// is the 7-bit one when it exists.
     pub fn model_path_for(self, weights: ModelWeights) -> PathBuf {
-        let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models");
+        let models = models_dir();
         let preferred = models.join(weights.model_file(self, int8_sums_saturate()));
         if preferred.exists() {
             preferred
@@ -118,6 +117,20 @@ impl std::fmt::Display for Precision {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.as_str())
     }
+}
+
+/// The environment variable that names the models folder (the Python
+/// package sets it to the models it carries).
+pub const MODELS_DIR_VARIABLE: &str = "SPSLAM_MODELS_DIR";
+
+/// The folder holding the shipped models and codebooks: `SPSLAM_MODELS_DIR`
+/// when set, else `models/` in the crate root (where `make setup` writes
+/// them).
+pub fn models_dir() -> PathBuf {
+    std::env::var_os(MODELS_DIR_VARIABLE)
+        .filter(|p| !p.is_empty())
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models"))
 }
 
 /// The SuperPoint weights `make setup` exports, by name: `SuperPoint.model`

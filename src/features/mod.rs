@@ -33,6 +33,6 @@ pub use exposure::ExposureConfig;
 pub use extractor::{PeriodicFilterReport, SuperPointExtractor};
 pub use frontend::{FeatureExtractor, FrameFeatures};
 pub use image::{GrayImage, GrayImageView, MAX_IMAGE_SIDE, MIN_IMAGE_SIDE};
-pub use inference::{int8_sums_saturate, ModelWeights, Precision};
+pub use inference::{int8_sums_saturate, models_dir, ModelWeights, Precision, MODELS_DIR_VARIABLE};
 pub use keypoint::{Features, Keypoint, StageTimings};
 pub use orb::{OrbConfig, OrbExtractor};

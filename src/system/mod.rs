@@ -12,6 +12,7 @@
 //! Layers: frame → features → tracking → map ← local mapping, loop closing. This module
 //! sits above them all; nothing below imports from it.
 
+mod assembly;
 mod atlas;
 mod global_ba_driver;
 mod global_ba_thread;
@@ -26,6 +27,9 @@ mod slam_system;
 mod trajectory;
 mod worker;
 
+pub use assembly::{
+    assemble_system, file_fingerprint, AssembledSystem, ExtractorKind, SystemOptions,
+};
 pub use atlas::{Atlas, AtlasMap, MapIndex};
 pub use global_ba_thread::GlobalBaHook;
 pub use local_mapping_thread::{MappingResult, MappingThread};

@@ -30,6 +30,20 @@ impl SlamSystem {
             .collect())
     }
 
+    /// The last processed frame's `T_wc` in the [trajectory](Self::trajectory)'s
+    /// world frame; `None` when that frame was not tracked (or none was
+    /// processed). Reads every record, like the trajectory.
+    pub fn last_pose(&self) -> Result<Option<Se3>, SlamError> {
+        let tracked = self
+            .records
+            .last()
+            .is_some_and(|r| r.relative_pose.is_some());
+        if !tracked {
+            return Ok(None);
+        }
+        Ok(self.anchored_poses()?.last().map(|(_, pose, _)| *pose))
+    }
+
     /// `(timestamp, T_wc, (map, anchor frame) for a map's first pose)` per record.
     #[allow(clippy::type_complexity)]
     fn anchored_poses(&self) -> Result<Vec<(f64, Se3, Option<(MapIndex, usize)>)>, SlamError> {

@@ -21,21 +21,17 @@ mod tum_layout;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
 
 use crate::plot_plane::PlotPlaneChoice;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use spslam::camera::{CameraRig, Sensor};
-use spslam::features::{
-    AnmsMethod, Device, FeatureExtractor, OrbConfig, OrbExtractor, Precision, SuperPointExtractor,
-};
-use spslam::loop_closing::LoopThresholds;
-use spslam::place::{default_codebook_for, Codebook};
+use spslam::camera::Sensor;
+use spslam::features::{AnmsMethod, Device, Precision};
 use spslam::settings::SlamSettings;
-use spslam::storage::{crc32, DescriptorPrecision, SaveOptions};
-use spslam::system::{LoadedMapUse, MapProvenance, SlamSystem};
-use spslam::tracking::Frontend;
+use spslam::storage::{DescriptorPrecision, SaveOptions};
+use spslam::system::{
+    assemble_system, AssembledSystem, ExtractorKind, LoadedMapUse, SystemOptions,
+};
 
 use frame_loop::{FrameLoop, RunEnd};
 use output::RunOutputs;
@@ -197,55 +193,6 @@ enum ExtractorChoice {
     Orb,
 }
 
-/// The extractors of `choice` from the settings: the left one, and the
-/// right one for stereo.
-#[allow(clippy::type_complexity)]
-fn extractors(
-    choice: ExtractorChoice,
-    settings: &SlamSettings,
-    levels: usize,
-    sensor: Sensor,
-) -> Result<(Box<dyn FeatureExtractor>, Option<Box<dyn FeatureExtractor>>)> {
-    let stereo = sensor == Sensor::Stereo;
-    let e = &settings.extractor;
-    match choice {
-        ExtractorChoice::Orb => {
-            let config = OrbConfig {
-                n_features: e.n_features,
-                scale_factor: e.scale_factor as f32,
-                n_levels: levels,
-                ini_th_fast: e.ini_th_fast,
-                min_th_fast: e.min_th_fast,
-            };
-            let right: Option<Box<dyn FeatureExtractor>> = if stereo {
-                Some(Box::new(OrbExtractor::new(config)?))
-            } else {
-                None
-            };
-            Ok((Box::new(OrbExtractor::new(config)?), right))
-        }
-        ExtractorChoice::Superpoint => {
-            // One ONNX Runtime thread pool per image; a stereo pair's two
-            // run in parallel, a single image gets every core.
-            let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
-            let threads = if stereo { cores / 2 } else { cores };
-            let config = e.superpoint_config(levels, threads);
-            let right: Option<Box<dyn FeatureExtractor>> = if stereo {
-                Some(Box::new(SuperPointExtractor::new(config.clone())?))
-            } else {
-                None
-            };
-            Ok((Box::new(SuperPointExtractor::new(config)?), right))
-        }
-    }
-}
-
-/// A file's identity for a map file's provenance: its CRC-32 and length.
-fn file_fingerprint(path: &std::path::Path) -> Option<String> {
-    let bytes = std::fs::read(path).ok()?;
-    Some(format!("crc32:{:08x}/{}B", crc32(&bytes), bytes.len()))
-}
-
 /// Runs SLAM over the sequence and writes its outputs. `Err`: the run
 /// could not start (exit code 1); otherwise the exit code is 0 for a
 /// complete run, 2 for an incomplete one (its outputs written).
@@ -277,18 +224,21 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         .depth_map_factor
         .unwrap_or(DEFAULT_DEPTH_MAP_FACTOR);
     let size = source.first_size(&frames, depth_factor)?;
-    let rig = CameraRig::for_sensor(&settings, sensor, size.0, size.1)?;
-    let levels = args.levels.unwrap_or(match args.extractor {
-        ExtractorChoice::Superpoint => settings.extractor.superpoint_levels,
-        ExtractorChoice::Orb => settings.extractor.n_levels,
-    });
-    let (left, right) = extractors(args.extractor, &settings, levels, sensor)?;
-    let inference = left.inference_summary();
-    let frontend = match right {
-        Some(right) => Frontend::new(left, right, &rig),
-        None => Frontend::single(left, &rig)?,
+    let options = SystemOptions {
+        extractor: match args.extractor {
+            ExtractorChoice::Superpoint => ExtractorKind::SuperPoint,
+            ExtractorChoice::Orb => ExtractorKind::Orb,
+        },
+        levels: args.levels,
+        loop_closing: !args.no_loop_closing,
+        codebook: args.codebook.clone(),
     };
-    let mut slam = SlamSystem::new(rig, frontend);
+    let AssembledSystem {
+        system: mut slam,
+        inference,
+        provenance,
+        ..
+    } = assemble_system(&settings, sensor, size, &options)?;
     if let Some(mapper) = slam.mapper_mut() {
         mapper.bundle_adjustment = !args.no_local_ba;
         mapper.keyframe_culling = !args.no_keyframe_culling;
@@ -299,30 +249,6 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
             mapper.slowdown = factor;
         }
     }
-    let model_fingerprint = match args.extractor {
-        ExtractorChoice::Superpoint => {
-            let config = settings.extractor.superpoint_config(levels, 1);
-            file_fingerprint(&config.resolved_model_path())
-        }
-        ExtractorChoice::Orb => None,
-    };
-    let mut codebook_fingerprint = None;
-    if !args.no_loop_closing && args.extractor == ExtractorChoice::Superpoint {
-        let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
-        let config = settings.extractor.superpoint_config(levels, cores / 2);
-        let path = args
-            .codebook
-            .clone()
-            .unwrap_or_else(|| default_codebook_for(&config));
-        let codebook = Codebook::load_for(&path, &config).with_context(|| {
-            format!(
-                "cannot use the loop-closing codebook {} (train one with `spslam vocab train --format vlad`, or run with --no-loop-closing)",
-                path.display()
-            )
-        })?;
-        slam.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default())?;
-        codebook_fingerprint = file_fingerprint(&path);
-    }
     if let Some(frames) = args.mapping_lag {
         if !(1..=100).contains(&frames) {
             bail!("--mapping-lag {frames}: give at least 1 and at most 100 frames per keyframe");
@@ -332,11 +258,6 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     if !args.inline_mapping {
         slam.spawn_mapping_thread()?;
     }
-    let provenance = MapProvenance {
-        extractor_settings: format!("{:?}", settings.extractor),
-        model_hash: model_fingerprint,
-        codebook_hash: codebook_fingerprint,
-    };
     if let Some(path) = &args.load_map {
         let loaded = spslam::storage::load(path)?;
         let use_ = if args.localize {
