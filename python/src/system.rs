@@ -444,7 +444,9 @@ impl System {
 
     /// Reads a map file saved by `save_map` or `spslam run --save-map`;
     /// it is used from the first frame on (`localize=True`: tracking only,
-    /// the map is not changed). Call before the first frame.
+    /// the map is not changed). Call before the first frame. Tracking
+    /// starts lost and finds the map through place recognition (on with
+    /// loop closing); without it, only the map's 30 newest keyframes are tried.
     #[pyo3(signature = (path, *, localize = false))]
     fn load_map(&self, py: Python<'_>, path: PathBuf, localize: bool) -> PyResult<()> {
         py.detach(|| {
