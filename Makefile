@@ -9,8 +9,13 @@ SPSLAM_DATA ?= $(abspath ../shared/data)
 export SPSLAM_DATA
 PYTHON := .deps/venv/bin/python
 OUT ?= out
+# Cargo features of the build: `make demo` and `make test` add `viewer`
+# (rerun's SDK for `spslam run --rerun/--viewer`); a plain `make build`
+# leaves it out (it adds about a quarter of an hour to a clean build here).
+SPSLAM_FEATURES ?=
+CARGO_FEATURES = $(if $(SPSLAM_FEATURES),--features $(SPSLAM_FEATURES))
 
-.PHONY: all setup setup-gpu gpu-check build rust-release demo test test-rust test-python test-python-package python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint train-superpoint-lite bench-homography
+.PHONY: all setup setup-gpu setup-viewer test-viewer lint-viewer gpu-check build rust-release demo test test-rust test-python test-python-package python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint train-superpoint-lite bench-homography
 
 all: build
 
@@ -24,7 +29,7 @@ setup:
 # shared crates (faer, gemm, regex), and one run builds them once, not twice.
 BUILD_TARGETS ?=
 build: setup
-	$(CARGO) build --release $(BUILD_TARGETS)
+	$(CARGO) build --release $(CARGO_FEATURES) $(BUILD_TARGETS)
 
 # ONNX Runtime's GPU build and its CUDA libraries (PyPI wheels) for
 # `--device cuda`; writes .deps/gpu.env. Needs an NVIDIA GPU and driver to be
@@ -71,15 +76,17 @@ rust-release: build
 # one pyramid level here (the default, int8 network): about a minute and a
 # half on a 2-core machine.
 DEMO_SEQ := $(OUT)/demo_loop
+demo: SPSLAM_FEATURES = viewer
 demo: build
 	@mkdir -p $(OUT)
 	./target/release/spslam synth --out $(DEMO_SEQ) --scene loop --overwrite
 	./target/release/spslam extract $(DEMO_SEQ)/sequences/00/image_0/000000.png --features 1000 --anms kdtree --draw $(OUT)/demo_keypoints.png
-	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --levels 1 --out $(OUT)/demo_run
+	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --levels 1 --out $(OUT)/demo_run --rerun $(OUT)/demo_run/run.rrd
 	./target/release/spslam run --dataset tum:$(DEMO_SEQ)/sequences/00 --levels 1 --out $(OUT)/demo_run_rgbd
 	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --sensor mono --levels 1 --out $(OUT)/demo_run_mono
 	@echo "[demo] trajectory plot: $(OUT)/demo_run/trajectory.png (errors: $(OUT)/demo_run/trajectory_errors.png)"
 	@echo "[demo] report: $(OUT)/demo_run/report.txt; keypoints of frame 0: $(OUT)/demo_keypoints.png"
+	@echo "[demo] the run in rerun's 3-D viewer: $(OUT)/demo_run/run.rrd (make setup-viewer, then .deps/venv-viewer/bin/rerun $(OUT)/demo_run/run.rrd)"
 	@echo "[demo] the same loop as RGB-D (TUM lists and depth maps): $(OUT)/demo_run_rgbd/report.txt; monocular: $(OUT)/demo_run_mono/report.txt"
 
 # The evaluation suite's standard set (suite/cases.txt), two runs at a
@@ -94,7 +101,25 @@ lint: setup
 	$(CARGO) clippy --release -p spslam-python -- -D warnings
 
 test-rust: build
-	$(CARGO) test --release
+	$(CARGO) test --release $(CARGO_FEATURES)
+
+# rerun's viewer and Python SDK (PyPI rerun-sdk, the version of the Rust
+# SDK compiled into spslam) in .deps/venv-viewer: `spslam run --viewer`
+# starts its `rerun`, and test-viewer reads recordings with it.
+RERUN_SDK_VERSION := 0.36.3
+setup-viewer: setup
+	@test -x .deps/venv-viewer/bin/python || python3 -m venv .deps/venv-viewer
+	.deps/venv-viewer/bin/python -m pip install --disable-pip-version-check -q rerun-sdk==$(RERUN_SDK_VERSION)
+
+# A KITTI 06 run recorded with --rerun, read back with rerun's reader: the
+# entities and their counts against the run's report (tools/test_rerun_recording.py).
+test-viewer: SPSLAM_FEATURES = viewer
+test-viewer: build setup-viewer
+	bash tools/test_viewer.sh $(OUT)/viewer_check
+
+# Clippy over the viewer's code (compiled with the `viewer` feature only).
+lint-viewer: setup
+	$(CARGO) clippy --release --all-targets --features viewer -- -D warnings
 
 test-python: setup
 	$(PYTHON) tools/test_export.py
@@ -121,8 +146,9 @@ include cpp_shim/orbslam3/orbslam3.mk
 # the binary preload, one run each here (about 4 minutes on 2 cores;
 # `make orbslam3-check` alone runs each three times).
 test: BUILD_TARGETS = --lib --bins --tests --examples
+test: SPSLAM_FEATURES = viewer
 test: ORBSLAM3_RUNS = 1
-test: lint test-rust test-python test-python-package cpp-test orbslam3-check test-fuzz
+test: lint test-rust test-python test-python-package test-viewer cpp-test orbslam3-check test-fuzz
 
 # The C ABI fuzzer (fuzz/README.md): its regression inputs, then a minute of
 # coverage-guided fuzzing (libFuzzer, stable Rust, no sanitizer). The long

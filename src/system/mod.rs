@@ -25,6 +25,7 @@ mod map_files;
 mod records;
 mod slam_system;
 mod trajectory;
+mod view;
 mod worker;
 
 pub use assembly::{
@@ -37,3 +38,4 @@ pub use loop_closing_stage::{LoopRecord, MergeRecord, RejectedLoopRecord};
 pub use map_files::{LoadedMapUse, MapProvenance};
 pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 pub use slam_system::SlamSystem;
+pub use view::{FrameView, KeyFrameView, MapView};

@@ -402,6 +402,11 @@ impl SlamSystem {
         Ok(())
     }
 
+    /// The camera rig it tracks with.
+    pub fn rig(&self) -> &CameraRig {
+        &self.rig
+    }
+
     /// The extractor's name.
     pub fn extractor_name(&self) -> &str {
         self.builder.extractor_name()

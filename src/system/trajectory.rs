@@ -101,7 +101,7 @@ impl SlamSystem {
     }
 
     /// `T_world,map` of every map with a tracked frame.
-    fn map_anchors(&self) -> Result<BTreeMap<MapIndex, Se3>, SlamError> {
+    pub(super) fn map_anchors(&self) -> Result<BTreeMap<MapIndex, Se3>, SlamError> {
         let poses = self.anchored_poses()?;
         let mut anchors = BTreeMap::new();
         for (record, (_, world_pose, _)) in self.records.iter().zip(&poses) {

@@ -529,6 +529,11 @@ impl Tracker {
         Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
     }
 
+    /// The last tracked frame (an untracked frame is not kept).
+    pub fn last_frame(&self) -> Option<&Frame> {
+        self.last_frame.as_ref()
+    }
+
     fn keep_last(&mut self, frame: Frame, relative: Option<(KeyFrameId, Se3)>) {
         // An untracked frame is dropped: the motion model restarts from
         // the last tracked one.

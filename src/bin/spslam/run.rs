@@ -18,6 +18,7 @@ mod pipeline;
 mod signals;
 pub(crate) mod source;
 mod tum_layout;
+mod viewer;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -38,6 +39,7 @@ use output::RunOutputs;
 use pipeline::{with_extraction_stage, Reading};
 use signals::StopRequest;
 use source::{Source, DEFAULT_DEPTH_MAP_FACTOR};
+use viewer::{CameraView, ViewerFeed, ViewerTarget};
 
 /// How local mapping ran, for the report: `inline`, `thread`, or
 /// `thread, 5x slowed` with `--mapping-slowdown`, `inline, 5 frames per
@@ -182,6 +184,39 @@ pub struct RunArgs {
     /// Frames between two --memory-log samples.
     #[arg(long, default_value_t = 100, requires = "memory_log")]
     memory_every: usize,
+    /// Record the run for rerun's viewer into this .rrd file (the pose,
+    /// frames and keypoints, keyframes, map points, loops, timings; open
+    /// it with `rerun FILE.rrd`). Needs the `viewer` build feature.
+    #[arg(long, value_name = "FILE.rrd", conflicts_with_all = ["rerun_connect", "viewer"])]
+    rerun: Option<PathBuf>,
+    /// Stream the run to a running rerun viewer (default
+    /// rerun+http://127.0.0.1:9876/proxy).
+    #[arg(long, value_name = "URL", num_args = 0..=1, default_missing_value = DEFAULT_RERUN_URL, conflicts_with = "viewer")]
+    rerun_connect: Option<String>,
+    /// Start rerun's viewer (`make setup-viewer` installs it) and stream
+    /// the run to it.
+    #[arg(long)]
+    viewer: bool,
+}
+
+/// Where a rerun viewer listens by default.
+const DEFAULT_RERUN_URL: &str = "rerun+http://127.0.0.1:9876/proxy";
+
+/// The viewer asked for on the command line, if any.
+fn viewer_target(args: &RunArgs) -> Option<ViewerTarget> {
+    if let Some(path) = &args.rerun {
+        return Some(ViewerTarget::File(path.clone()));
+    }
+    if let Some(url) = &args.rerun_connect {
+        return Some(ViewerTarget::Connect(url.clone()));
+    }
+    args.viewer.then(|| ViewerTarget::Spawn {
+        executable: std::env::var_os("SPSLAM_RERUN")
+            .map(PathBuf::from)
+            .unwrap_or_else(|| {
+                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(".deps/venv-viewer/bin/rerun")
+            }),
+    })
 }
 
 /// `--extractor`.
@@ -303,12 +338,32 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         )?)),
         None => None,
     };
+    let viewer = match viewer_target(&args) {
+        Some(target) => {
+            let rig = slam.rig();
+            let camera = CameraView {
+                fx: rig.camera.fx,
+                fy: rig.camera.fy,
+                cx: rig.camera.cx,
+                cy: rig.camera.cy,
+                width: rig.width,
+                height: rig.height,
+            };
+            Some(std::cell::RefCell::new(ViewerFeed::start(
+                target,
+                camera,
+                args.dataset.clone(),
+            )?))
+        }
+        None => None,
+    };
     let frame_loop = FrameLoop {
         frames: &frames,
         strict: args.strict,
         stop: &stop,
         bar: &bar,
         memory_log: memory_log.as_ref(),
+        viewer: viewer.as_ref(),
     };
     let extractors = slam
         .detach_extractors()
@@ -331,6 +386,20 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         bar.finish();
     } else {
         bar.abandon();
+    }
+    if let Some(feed) = viewer {
+        let truth = source.ground_truth(slam.records().len()).ok().flatten();
+        let aligned = truth.and_then(|gt| {
+            let estimate = slam.trajectory().ok()?;
+            viewer::aligned_ground_truth(&gt, &estimate, source.is_kitti(), sensor.has_depth())
+        });
+        match feed.into_inner().finish(&slam, aligned) {
+            Ok(counts) => eprintln!(
+                "viewer: {} frames and {} copies of the map logged; {} dropped (the logging thread fell behind)",
+                counts.frames, counts.maps, counts.dropped
+            ),
+            Err(e) => eprintln!("warning: the viewer failed: {e:#}"),
+        }
     }
 
     let mut map_problem = None;

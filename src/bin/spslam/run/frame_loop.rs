@@ -18,6 +18,7 @@ use super::memory_log::MemoryLog;
 use super::pipeline::{PrepareError, Prepared, PreparedFrame};
 use super::signals::StopRequest;
 use super::source::{InputFrame, Unreadable, UnreadableCause};
+use super::viewer::ViewerFeed;
 
 /// How a run ended.
 #[derive(Debug, Clone, PartialEq)]
@@ -83,6 +84,8 @@ pub struct FrameLoop<'a> {
     pub bar: &'a ProgressBar,
     /// `--memory-log`, sampled after every frame it asks for.
     pub memory_log: Option<&'a RefCell<MemoryLog>>,
+    /// `--rerun`/`--viewer`: fed after every frame.
+    pub viewer: Option<&'a RefCell<ViewerFeed>>,
 }
 
 /// One frame's outcome that is not a tracked record.
@@ -190,6 +193,11 @@ impl FrameLoop<'_> {
             )
             .map(|record| (record.state, record.inliers))
         }));
+        if let (Some(viewer), Ok(Ok(_))) = (self.viewer, &outcome) {
+            viewer
+                .borrow_mut()
+                .after_frame(slam, Some(prepared.images.views().left()));
+        }
         match outcome {
             Ok(Ok((state, inliers))) => {
                 tracing::debug!(frame = index, ?state, inliers, "frame processed");

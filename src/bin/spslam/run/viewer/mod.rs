@@ -1,0 +1,314 @@
+//! `spslam run --rerun FILE.rrd | --rerun-connect [URL] | --viewer`: the
+//! run as it happens, in rerun's 3-D viewer.
+//!
+//! The frame loop hands this feed copies taken from the system between
+//! frames (the pose, the frame's keypoints, every tenth frame the maps);
+//! a thread of its own turns them into rerun's archetypes and logs them.
+//! The queue between the two is bounded: when the logging thread falls
+//! behind, frames are dropped from the viewer, never from SLAM, and the
+//! count is reported at the end. The rerun SDK is compiled in with the
+//! `viewer` cargo feature only (`make demo` and `make test` build it).
+
+// Without the `viewer` feature the feed refuses to start, and nothing
+// reads its messages.
+#![cfg_attr(not(feature = "viewer"), allow(dead_code))]
+
+#[cfg(feature = "viewer")]
+mod rerun_log;
+
+use std::path::PathBuf;
+use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::thread::JoinHandle;
+
+use anyhow::{bail, Result};
+use spslam::eval::Trajectory;
+use spslam::features::GrayImageView;
+use spslam::optim::Se3;
+use spslam::system::{FrameView, MapView, SlamSystem};
+
+/// Frames the logging thread may fall behind before frames are dropped.
+const QUEUE_FRAMES: usize = 32;
+/// The maps are copied every this many frames (and at the end).
+const MAP_EVERY_FRAMES: usize = 10;
+
+/// Where the recording goes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ViewerTarget {
+    /// A `.rrd` file (`--rerun FILE`).
+    File(PathBuf),
+    /// A running viewer (`--rerun-connect [URL]`).
+    Connect(String),
+    /// A viewer started for this run (`--viewer`), from `executable`.
+    Spawn {
+        /// The `rerun` executable.
+        executable: PathBuf,
+    },
+}
+
+/// The camera's intrinsics, for the frusta and the image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraView {
+    /// Focal lengths and principal point, pixels.
+    pub fx: f64,
+    /// Vertical focal length.
+    pub fy: f64,
+    /// Principal point x.
+    pub cx: f64,
+    /// Principal point y.
+    pub cy: f64,
+    /// Image size, pixels.
+    pub width: usize,
+    /// Image height.
+    pub height: usize,
+}
+
+/// One message to the logging thread.
+pub enum ViewerMessage {
+    /// One processed frame.
+    Frame(Box<FrameMessage>),
+    /// The maps, the corrected trajectory and the loop and merge edges.
+    Maps(Box<MapsMessage>),
+    /// The ground truth, aligned to the estimate (at the end of a run).
+    GroundTruth(Vec<[f32; 3]>),
+}
+
+/// What is shown for one frame.
+pub struct FrameMessage {
+    /// Its index (the `frame` timeline).
+    pub index: usize,
+    /// Its timestamp, seconds (the `time` timeline).
+    pub timestamp: f64,
+    /// `T_wc` when it was tracked.
+    pub pose_wc: Option<Se3>,
+    /// The left (or only) image, row-major gray bytes.
+    pub image: Vec<u8>,
+    /// Its keypoints and which track map points (when it was tracked).
+    pub keypoints: Option<FrameView>,
+    /// Inliers of the pose.
+    pub inliers: usize,
+    /// Whether it became a keyframe.
+    pub keyframe: bool,
+    /// Stage times, milliseconds: extraction, tracking, mapping.
+    pub timings_ms: [f64; 3],
+}
+
+/// A copy of the maps.
+pub struct MapsMessage {
+    /// The frame after which it was taken.
+    pub index: usize,
+    /// Its timestamp.
+    pub timestamp: f64,
+    /// Every anchored map.
+    pub maps: Vec<MapView>,
+    /// The whole estimated trajectory's positions (as corrected so far).
+    pub trajectory: Vec<[f32; 3]>,
+    /// Accepted loops and merges as pairs of positions on the trajectory.
+    pub edges: Vec<([f32; 3], [f32; 3])>,
+}
+
+/// The frame loop's side of the viewer.
+pub struct ViewerFeed {
+    sender: Option<SyncSender<ViewerMessage>>,
+    thread: Option<JoinHandle<Result<()>>>,
+    counts: ViewerCounts,
+}
+
+/// What reached the logging thread.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct ViewerCounts {
+    /// Frames handed over.
+    pub frames: usize,
+    /// Copies of the maps handed over.
+    pub maps: usize,
+    /// Frames (or map copies) dropped because the queue was full.
+    pub dropped: usize,
+}
+
+fn position(pose: &Se3) -> [f32; 3] {
+    let t = pose.to_isometry().translation.vector;
+    [t.x as f32, t.y as f32, t.z as f32]
+}
+
+impl ViewerFeed {
+    /// Starts the logging thread and opens the recording.
+    pub fn start(target: ViewerTarget, camera: CameraView, title: String) -> Result<Self> {
+        #[cfg(feature = "viewer")]
+        {
+            let (sender, receiver) = sync_channel(QUEUE_FRAMES);
+            let recording = rerun_log::open(&target, &title)?;
+            let thread = std::thread::Builder::new()
+                .name("viewer".into())
+                .spawn(move || rerun_log::run(recording, camera, receiver))?;
+            Ok(Self {
+                sender: Some(sender),
+                thread: Some(thread),
+                counts: ViewerCounts::default(),
+            })
+        }
+        #[cfg(not(feature = "viewer"))]
+        {
+            let _ = (target, camera, title, sync_channel::<ViewerMessage>);
+            bail!("this spslam was built without the viewer: build it with `cargo build --release --features viewer` (`make demo` does)")
+        }
+    }
+
+    fn send(&mut self, message: ViewerMessage) {
+        let Some(sender) = &self.sender else {
+            return;
+        };
+        let is_frame = matches!(message, ViewerMessage::Frame(_));
+        match sender.try_send(message) {
+            Ok(()) if is_frame => self.counts.frames += 1,
+            Ok(()) => self.counts.maps += 1,
+            Err(TrySendError::Full(_)) => self.counts.dropped += 1,
+            // The logging thread stopped (its error is reported at the end).
+            Err(TrySendError::Disconnected(_)) => self.sender = None,
+        }
+    }
+
+    /// After each processed frame: the pose, the image and keypoints, and
+    /// every tenth frame the maps.
+    pub fn after_frame(&mut self, slam: &SlamSystem, image: Option<GrayImageView<'_>>) {
+        let Some(record) = slam.records().last() else {
+            return;
+        };
+        let index = record.index;
+        let pose_wc = slam.last_pose().ok().flatten();
+        let keypoints = slam.frame_view().filter(|view| view.index == index);
+        let image = image
+            .map(|view| {
+                (0..view.height())
+                    .flat_map(|y| view.row(y).iter().copied())
+                    .collect()
+            })
+            .unwrap_or_default();
+        self.send(ViewerMessage::Frame(Box::new(FrameMessage {
+            index,
+            timestamp: record.timestamp,
+            pose_wc,
+            image,
+            keypoints,
+            inliers: record.inliers,
+            keyframe: record.keyframe,
+            timings_ms: [
+                record.timings.extraction_ms,
+                record.timings.tracking_ms,
+                record.timings.mapping_ms,
+            ],
+        })));
+        if (index + 1) % MAP_EVERY_FRAMES == 0 {
+            if let Some(maps) = maps_message(slam) {
+                self.send(ViewerMessage::Maps(Box::new(maps)));
+            }
+        }
+    }
+
+    /// At the end of the run: the final maps and the aligned ground truth
+    /// (these wait for room in the queue), then the thread is joined.
+    pub fn finish(
+        mut self,
+        slam: &SlamSystem,
+        ground_truth: Option<Vec<[f32; 3]>>,
+    ) -> Result<ViewerCounts> {
+        if let Some(sender) = self.sender.take() {
+            if let Some(maps) = maps_message(slam) {
+                if sender.send(ViewerMessage::Maps(Box::new(maps))).is_ok() {
+                    self.counts.maps += 1;
+                }
+            }
+            if let Some(gt) = ground_truth {
+                let _ = sender.send(ViewerMessage::GroundTruth(gt));
+            }
+        }
+        if let Some(thread) = self.thread.take() {
+            match thread.join() {
+                Ok(result) => result?,
+                Err(_) => bail!("the viewer's logging thread panicked"),
+            }
+        }
+        Ok(self.counts)
+    }
+}
+
+/// The maps, trajectory and edges now; `None` when they cannot be read.
+fn maps_message(slam: &SlamSystem) -> Option<MapsMessage> {
+    let record = slam.records().last()?;
+    let maps = slam.map_views().ok()?;
+    let poses = slam.trajectory().ok()?;
+    let at = |frame: usize| {
+        slam.records()
+            .iter()
+            .position(|r| r.index == frame)
+            .and_then(|i| poses.get(i))
+            .map(|(_, pose)| position(pose))
+    };
+    let loops = slam.loops().iter().map(|l| (l.query_frame, l.match_frame));
+    let merges = slam.merges().iter().map(|m| (m.query_frame, m.match_frame));
+    let edges = loops
+        .chain(merges)
+        .filter_map(|(q, m)| Some((at(q)?, at(m)?)))
+        .collect();
+    Some(MapsMessage {
+        index: record.index,
+        timestamp: record.timestamp,
+        maps,
+        trajectory: poses.iter().map(|(_, pose)| position(pose)).collect(),
+        edges,
+    })
+}
+
+/// The ground truth's positions in the estimate's frame: paired with the
+/// estimate by row (KITTI layout) or by time (within 10 ms), aligned by
+/// SE(3), or Sim(3) for a monocular run; `None` when too few pairs.
+pub fn aligned_ground_truth(
+    gt: &Trajectory,
+    estimate: &[(f64, Se3)],
+    by_row: bool,
+    metric: bool,
+) -> Option<Vec<[f32; 3]>> {
+    use spslam::eval::report::{pair_trajectories, Pairing};
+    use spslam::eval::{ate::alignment_transform, Alignment};
+    let estimate = Trajectory::new(
+        estimate.iter().map(|(t, _)| *t).collect(),
+        estimate.iter().map(|(_, p)| p.to_isometry()).collect(),
+    );
+    let pair = if by_row {
+        let n = gt.len().min(estimate.len());
+        let rows: Vec<usize> = (0..n).collect();
+        spslam::eval::AssociatedPair {
+            reference: estimate.select(&rows),
+            estimate: gt.select(&rows),
+        }
+    } else {
+        let paired = pair_trajectories(
+            gt,
+            &estimate,
+            Pairing::ByTimestamp {
+                max_diff: spslam::eval::DEFAULT_MAX_DIFF,
+                one_to_one: true,
+            },
+        )
+        .ok()?;
+        spslam::eval::AssociatedPair {
+            reference: paired.estimate,
+            estimate: paired.reference,
+        }
+    };
+    if pair.reference.len() < 3 {
+        return None;
+    }
+    let alignment = if metric {
+        Alignment::Se3
+    } else {
+        Alignment::Sim3
+    };
+    let sim = alignment_transform(&pair.reference, &pair.estimate, alignment).ok()?;
+    let aligned = gt.transformed(&sim.transform, sim.scale);
+    Some(
+        aligned
+            .positions()
+            .iter()
+            .map(|p| [p.x as f32, p.y as f32, p.z as f32])
+            .collect(),
+    )
+}
