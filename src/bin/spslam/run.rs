@@ -39,7 +39,7 @@ use output::RunOutputs;
 use pipeline::{with_extraction_stage, Reading};
 use signals::StopRequest;
 use source::{Source, DEFAULT_DEPTH_MAP_FACTOR};
-use viewer::{CameraView, ViewerFeed, ViewerTarget};
+use viewer::{ViewerFeed, ViewerTarget};
 
 /// How local mapping ran, for the report: `inline`, `thread`, or
 /// `thread, 5x slowed` with `--mapping-slowdown`, `inline, 5 frames per
@@ -339,22 +339,11 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         None => None,
     };
     let viewer = match viewer_target(&args) {
-        Some(target) => {
-            let rig = slam.rig();
-            let camera = CameraView {
-                fx: rig.camera.fx,
-                fy: rig.camera.fy,
-                cx: rig.camera.cx,
-                cy: rig.camera.cy,
-                width: rig.width,
-                height: rig.height,
-            };
-            Some(std::cell::RefCell::new(ViewerFeed::start(
-                target,
-                camera,
-                args.dataset.clone(),
-            )?))
-        }
+        Some(target) => Some(std::cell::RefCell::new(ViewerFeed::start(
+            target,
+            *slam.rig(),
+            args.dataset.clone(),
+        )?)),
         None => None,
     };
     let frame_loop = FrameLoop {

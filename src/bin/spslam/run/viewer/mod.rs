@@ -21,6 +21,7 @@ use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::thread::JoinHandle;
 
 use anyhow::{bail, Result};
+use spslam::camera::CameraRig;
 use spslam::eval::Trajectory;
 use spslam::features::GrayImageView;
 use spslam::optim::Se3;
@@ -43,23 +44,6 @@ pub enum ViewerTarget {
         /// The `rerun` executable.
         executable: PathBuf,
     },
-}
-
-/// The camera's intrinsics, for the frusta and the image.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CameraView {
-    /// Focal lengths and principal point, pixels.
-    pub fx: f64,
-    /// Vertical focal length.
-    pub fy: f64,
-    /// Principal point x.
-    pub cx: f64,
-    /// Principal point y.
-    pub cy: f64,
-    /// Image size, pixels.
-    pub width: usize,
-    /// Image height.
-    pub height: usize,
 }
 
 /// One message to the logging thread.
@@ -131,7 +115,8 @@ fn position(pose: &Se3) -> [f32; 3] {
 
 impl ViewerFeed {
     /// Starts the logging thread and opens the recording.
-    pub fn start(target: ViewerTarget, camera: CameraView, title: String) -> Result<Self> {
+    /// `camera`: the rig's intrinsics and image size draw the frusta and the frame.
+    pub fn start(target: ViewerTarget, camera: CameraRig, title: String) -> Result<Self> {
         #[cfg(feature = "viewer")]
         {
             let (sender, receiver) = sync_channel(QUEUE_FRAMES);

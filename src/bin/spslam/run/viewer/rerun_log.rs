@@ -16,7 +16,9 @@ use anyhow::{Context, Result};
 use rerun::{RecordingStream, RecordingStreamBuilder};
 use spslam::optim::Se3;
 
-use super::{CameraView, FrameMessage, MapsMessage, ViewerMessage, ViewerTarget};
+use spslam::camera::CameraRig;
+
+use super::{FrameMessage, MapsMessage, ViewerMessage, ViewerTarget};
 
 /// Distance of a keyframe frustum's image plane, metres.
 const FRUSTUM_DEPTH_M: f32 = 0.3;
@@ -95,17 +97,18 @@ fn transform(pose: &Se3) -> rerun::Transform3D {
     rerun::Transform3D::from_translation_rotation(translation, rotation)
 }
 
-fn pinhole(camera: &CameraView) -> rerun::Pinhole {
+fn pinhole(rig: &CameraRig) -> rerun::Pinhole {
+    let c = &rig.camera;
     rerun::Pinhole::from_focal_length_and_resolution(
-        [camera.fx as f32, camera.fy as f32],
-        [camera.width as f32, camera.height as f32],
+        [c.fx as f32, c.fy as f32],
+        [rig.width as f32, rig.height as f32],
     )
-    .with_principal_point([camera.cx as f32, camera.cy as f32])
+    .with_principal_point([c.cx as f32, c.cy as f32])
 }
 
 struct Logger {
     recording: RecordingStream,
-    camera: CameraView,
+    camera: CameraRig,
     /// Per map: each logged keyframe's last logged position.
     keyframes: BTreeMap<usize, BTreeMap<u64, [f64; 3]>>,
 }
@@ -230,7 +233,7 @@ impl Logger {
 /// Logs until the feed closes the queue; flushes the recording at the end.
 pub fn run(
     recording: RecordingStream,
-    camera: CameraView,
+    camera: CameraRig,
     messages: Receiver<ViewerMessage>,
 ) -> Result<()> {
     recording.log_static("world", &rerun::ViewCoordinates::RDF())?;
