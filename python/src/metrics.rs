@@ -209,15 +209,18 @@ pub fn evaluate<'py>(
     serialised(py, &report)
 }
 
+/// Reads both trajectory arguments and pairs their poses (see [`pairing`]).
 fn paired(
-    reference: &Input,
-    estimate: &Input,
+    reference: &Bound<'_, PyAny>,
+    estimate: &Bound<'_, PyAny>,
     max_diff: f64,
 ) -> PyResult<spslam::eval::AssociatedPair> {
+    let reference = trajectory_argument(reference, "reference")?;
+    let estimate = trajectory_argument(estimate, "estimate")?;
     spslam::eval::report::pair_trajectories(
         &reference.trajectory,
         &estimate.trajectory,
-        pairing(reference, estimate, max_diff),
+        pairing(&reference, &estimate, max_diff),
     )
     .map_err(eval_error)
 }
@@ -244,9 +247,7 @@ pub fn ate<'py>(
             )))
         }
     };
-    let reference = trajectory_argument(reference, "reference")?;
-    let estimate = trajectory_argument(estimate, "estimate")?;
-    let pair = paired(&reference, &estimate, max_diff)?;
+    let pair = paired(reference, estimate, max_diff)?;
     let result = ate_of(&pair.reference, &pair.estimate, alignment).map_err(eval_error)?;
     serialised(py, &result)
 }
@@ -274,9 +275,7 @@ pub fn rpe<'py>(
             )))
         }
     };
-    let reference = trajectory_argument(reference, "reference")?;
-    let estimate = trajectory_argument(estimate, "estimate")?;
-    let pair = paired(&reference, &estimate, max_diff)?;
+    let pair = paired(reference, estimate, max_diff)?;
     let options = RpeOptions {
         all_pairs,
         ..RpeOptions::new(delta)
