@@ -125,15 +125,17 @@ test-python: setup
 	$(PYTHON) tools/test_export.py
 	$(PYTHON) tools/orbslam3/test_check.py
 
-# The Python package (python/README.md): an abi3 wheel for CPython >= 3.9 in
-# target/wheels/ (pyo3 + maturin from PyPI), carrying the models; it loads
-# ONNX Runtime from the PyPI onnxruntime package it depends on.
+# The Python package (README.md, "Python"): an abi3 manylinux_2_35 wheel for
+# CPython >= 3.9 in target/wheels/ (pyo3 + maturin + auditwheel from PyPI),
+# carrying the models and the OpenCV it links; it loads ONNX Runtime from
+# the PyPI onnxruntime package it depends on.
 python: build
 	bash tools/python_wheel.sh build
 
-# The wheel installed into a fresh venv, and its pytest suite (python/tests):
-# extraction and a KITTI 06 run identical to the CLI's, matching against a
-# NumPy brute force, the metrics against evo's figures, bad input.
+# The wheel installed into a fresh venv, imported with the system's OpenCV
+# hidden, and its pytest suite (python/tests): extraction and a KITTI 06 run
+# identical to the CLI's, matching against a NumPy brute force, the metrics
+# against evo's figures, bad input, the GIL released.
 test-python-package: python
 	bash tools/python_wheel.sh test
 
