@@ -376,21 +376,6 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     } else {
         bar.abandon();
     }
-    if let Some(feed) = viewer {
-        let truth = source.ground_truth(slam.records().len()).ok().flatten();
-        let aligned = truth.and_then(|gt| {
-            let estimate = slam.trajectory().ok()?;
-            viewer::aligned_ground_truth(&gt, &estimate, source.is_kitti(), sensor.has_depth())
-        });
-        match feed.into_inner().finish(&slam, aligned) {
-            Ok(counts) => eprintln!(
-                "viewer: {} frames and {} copies of the map logged; {} dropped (the logging thread fell behind)",
-                counts.frames, counts.maps, counts.dropped
-            ),
-            Err(e) => eprintln!("warning: the viewer failed: {e:#}"),
-        }
-    }
-
     let mut map_problem = None;
     if let (Some(log), Some(path)) = (&memory_log, &args.memory_log) {
         let png = path.with_extension("png");
@@ -436,6 +421,23 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     if let Some(problem) = map_problem {
         problems.push(anyhow::anyhow!(problem));
     }
+    // The viewer last: its end may wait for a slow or vanished viewer, and
+    // the outputs above are written by then.
+    if let Some(feed) = viewer {
+        let truth = source.ground_truth(slam.records().len()).ok().flatten();
+        let aligned = truth.and_then(|gt| {
+            let estimate = slam.trajectory().ok()?;
+            viewer::aligned_ground_truth(&gt, &estimate, source.is_kitti(), sensor.has_depth())
+        });
+        match feed.into_inner().finish(&slam, aligned) {
+            Ok(counts) => eprintln!(
+                "viewer: {} frames and {} copies of the map logged; {} dropped (the logging thread fell behind)",
+                counts.frames, counts.maps, counts.dropped
+            ),
+            Err(e) => eprintln!("warning: the viewer failed: {e:#}"),
+        }
+    }
+
     for problem in &problems {
         eprintln!("error: {problem:#}");
     }

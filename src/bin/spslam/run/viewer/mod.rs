@@ -6,8 +6,12 @@
 //! a thread of its own turns them into rerun's archetypes and logs them.
 //! The queue between the two is bounded: when the logging thread falls
 //! behind, frames are dropped from the viewer, never from SLAM, and the
-//! count is reported at the end. The rerun SDK is compiled in with the
-//! `viewer` cargo feature only (`make demo` and `make test` build it).
+//! count is reported at the end. A viewer that goes away (closed, or it
+//! could not start) never holds the run: a streaming feed gets
+//! [`STREAM_FINISH_TIMEOUT`] to hand over its last messages, and the run's
+//! outputs are written before the feed finishes. The rerun SDK is compiled
+//! in with the `viewer` cargo feature only (`make demo` and `make test`
+//! build it).
 
 // Without the `viewer` feature the feed refuses to start, and nothing
 // reads its messages.
@@ -19,6 +23,7 @@ mod rerun_log;
 use std::path::PathBuf;
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 
 use anyhow::{bail, Result};
 use spslam::camera::CameraRig;
@@ -31,6 +36,14 @@ use spslam::system::{FrameView, MapView, SlamSystem};
 const QUEUE_FRAMES: usize = 32;
 /// The maps are copied every this many frames (and at the end).
 const MAP_EVERY_FRAMES: usize = 10;
+/// How long the end of a run waits for a streamed recording (`--viewer`,
+/// `--rerun-connect`) to take its last messages. A viewer that is still
+/// there takes a few frames' worth in well under a second; one that was
+/// closed, or never started, takes nothing, and the rerun SDK would wait
+/// for it forever. A file (`--rerun FILE`) is always waited for.
+pub const STREAM_FINISH_TIMEOUT: Duration = Duration::from_secs(20);
+/// How often the end of a run checks whether the logging thread is done.
+const FINISH_POLL: Duration = Duration::from_millis(20);
 
 /// Where the recording goes.
 #[derive(Debug, Clone, PartialEq)]
@@ -95,6 +108,8 @@ pub struct ViewerFeed {
     sender: Option<SyncSender<ViewerMessage>>,
     thread: Option<JoinHandle<Result<()>>>,
     counts: ViewerCounts,
+    /// How long [`Self::finish`] waits; `None`: as long as it takes.
+    finish_timeout: Option<Duration>,
 }
 
 /// What reached the logging thread.
@@ -120,6 +135,12 @@ impl ViewerFeed {
         #[cfg(feature = "viewer")]
         {
             let (sender, receiver) = sync_channel(QUEUE_FRAMES);
+            let finish_timeout = match target {
+                ViewerTarget::File(_) => None,
+                ViewerTarget::Connect(_) | ViewerTarget::Spawn { .. } => {
+                    Some(STREAM_FINISH_TIMEOUT)
+                }
+            };
             let recording = rerun_log::open(&target, &title)?;
             let thread = std::thread::Builder::new()
                 .name("viewer".into())
@@ -128,6 +149,7 @@ impl ViewerFeed {
                 sender: Some(sender),
                 thread: Some(thread),
                 counts: ViewerCounts::default(),
+                finish_timeout,
             })
         }
         #[cfg(not(feature = "viewer"))]
@@ -188,30 +210,93 @@ impl ViewerFeed {
         }
     }
 
-    /// At the end of the run: the final maps and the aligned ground truth
-    /// (these wait for room in the queue), then the thread is joined.
+    /// At the end of the run: the final maps and the aligned ground truth,
+    /// then the logging thread's end. A file is waited for as long as it
+    /// takes; a stream for [`STREAM_FINISH_TIMEOUT`], after which the
+    /// logging thread is left behind (the process ends without it) and the
+    /// error says that the viewer stopped taking data.
     pub fn finish(
         mut self,
         slam: &SlamSystem,
         ground_truth: Option<Vec<[f32; 3]>>,
     ) -> Result<ViewerCounts> {
+        let deadline = self.finish_timeout.map(|timeout| Instant::now() + timeout);
+        let timed_out = || {
+            anyhow::anyhow!(
+                "the viewer took no data for {} s (was it closed, or could it not start? \
+                 its own messages are above); the end of the recording was not shown",
+                STREAM_FINISH_TIMEOUT.as_secs()
+            )
+        };
         if let Some(sender) = self.sender.take() {
             if let Some(maps) = maps_message(slam) {
-                if sender.send(ViewerMessage::Maps(Box::new(maps))).is_ok() {
-                    self.counts.maps += 1;
+                match send_until(&sender, ViewerMessage::Maps(Box::new(maps)), deadline) {
+                    SendOutcome::Sent => self.counts.maps += 1,
+                    SendOutcome::Closed => {}
+                    SendOutcome::TimedOut => return Err(timed_out()),
                 }
             }
             if let Some(gt) = ground_truth {
-                let _ = sender.send(ViewerMessage::GroundTruth(gt));
+                if send_until(&sender, ViewerMessage::GroundTruth(gt), deadline)
+                    == SendOutcome::TimedOut
+                {
+                    return Err(timed_out());
+                }
             }
         }
         if let Some(thread) = self.thread.take() {
+            if let Some(deadline) = deadline {
+                while !thread.is_finished() {
+                    if Instant::now() >= deadline {
+                        // Dropping the handle detaches the thread.
+                        return Err(timed_out());
+                    }
+                    std::thread::sleep(FINISH_POLL);
+                }
+            }
             match thread.join() {
                 Ok(result) => result?,
                 Err(_) => bail!("the viewer's logging thread panicked"),
             }
         }
         Ok(self.counts)
+    }
+}
+
+/// What became of a message [`send_until`] tried to hand over.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SendOutcome {
+    Sent,
+    /// The logging thread has stopped (its error comes with its end).
+    Closed,
+    TimedOut,
+}
+
+/// Sends, waiting for room in the queue until `deadline` (forever without one).
+fn send_until(
+    sender: &SyncSender<ViewerMessage>,
+    message: ViewerMessage,
+    deadline: Option<Instant>,
+) -> SendOutcome {
+    let Some(deadline) = deadline else {
+        return match sender.send(message) {
+            Ok(()) => SendOutcome::Sent,
+            Err(_) => SendOutcome::Closed,
+        };
+    };
+    let mut message = message;
+    loop {
+        match sender.try_send(message) {
+            Ok(()) => return SendOutcome::Sent,
+            Err(TrySendError::Disconnected(_)) => return SendOutcome::Closed,
+            Err(TrySendError::Full(back)) => {
+                if Instant::now() >= deadline {
+                    return SendOutcome::TimedOut;
+                }
+                message = back;
+                std::thread::sleep(FINISH_POLL);
+            }
+        }
     }
 }
 
