@@ -31,7 +31,8 @@ use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::{
-    check_candidate, confirm_with, CheckedCandidate, LoopStage, RejectedCandidate, VerifiedLoop,
+    check_candidate, confirm_with, detach_group, detach_query, CandidateGroup, CheckedCandidate,
+    LoopStage, RejectedCandidate, VerifiedLoop,
 };
 
 /// A loop the detector accepted: the query keyframe's pose in the loop's
@@ -113,6 +114,17 @@ struct PendingLoop {
     group: Vec<KeyFrameId>,
     group_points: Vec<MapPointId>,
     correction: Se3,
+}
+
+/// What one candidate's check reads, copied out of the map under a short
+/// read lock ([`LoopDetector::verify_candidate`]).
+struct DetachedCheck {
+    /// The query keyframe and the covisible keyframes that may confirm it.
+    query_side: Map,
+    /// The candidate's group.
+    group: CandidateGroup,
+    /// A copy of the group's points.
+    points: Map,
 }
 
 /// The keyframe database of one map, shared by loop detection (which
@@ -308,7 +320,10 @@ impl LoopDetector {
     /// verified, then [`Self::record`]. `read` gives the map for one step;
     /// a caller that shares the map with other threads passes a read lock,
     /// so that the lock is held for one step at a time (the system's
-    /// loop-closing stage does), never across the whole detection.
+    /// loop-closing stage does), never across the whole detection. A
+    /// candidate's check, the long step, holds it only while copying what
+    /// it reads ([`Map::excerpt`]: the query and its confirming keyframes,
+    /// the candidate group's points) and then runs on the copies.
     pub fn process_with<M: std::ops::Deref<Target = Map>>(
         &mut self,
         read: impl Fn() -> Result<M, SlamError>,
@@ -327,13 +342,13 @@ impl LoopDetector {
             }
             DetectionPlan::Candidates(candidates) => {
                 for candidate in candidates {
-                    let step = self.verify_candidate(
-                        &*read()?,
-                        kf,
-                        candidate,
-                        rig,
-                        &mut outcome.rejected,
-                    )?;
+                    // What the check reads is copied under one short read
+                    // lock; the check itself (tens of ms) holds none.
+                    let Some(detached) = self.detach(&*read()?, kf, candidate.0) else {
+                        continue;
+                    };
+                    let step =
+                        self.check_detached(&detached, kf, candidate, rig, &mut outcome.rejected)?;
                     match step {
                         CandidateStep::Rejected => continue,
                         CandidateStep::Pending => break,
@@ -405,15 +420,48 @@ impl LoopDetector {
         &mut self,
         map: &Map,
         kf: KeyFrameId,
+        candidate: (KeyFrameId, f32),
+        rig: &CameraRig,
+        rejected: &mut Vec<RejectedCandidate>,
+    ) -> Result<CandidateStep, SlamError> {
+        let Some(detached) = self.detach(map, kf, candidate.0) else {
+            return Ok(CandidateStep::Rejected);
+        };
+        self.check_detached(&detached, kf, candidate, rig, rejected)
+    }
+
+    /// Copies what the check of `candidate` for `kf` reads (`None` when
+    /// either was culled since the plan).
+    fn detach(&self, map: &Map, kf: KeyFrameId, candidate: KeyFrameId) -> Option<DetachedCheck> {
+        if map.keyframe(kf).is_err() || map.keyframe(candidate).is_err() {
+            return None;
+        }
+        let (group, points) = detach_group(map, candidate, &self.thresholds);
+        Some(DetachedCheck {
+            query_side: detach_query(map, kf, &self.thresholds),
+            group,
+            points,
+        })
+    }
+
+    /// [`Self::verify_candidate`] on copies made by [`Self::detach`].
+    fn check_detached(
+        &mut self,
+        detached: &DetachedCheck,
+        kf: KeyFrameId,
         (candidate, score): (KeyFrameId, f32),
         rig: &CameraRig,
         rejected: &mut Vec<RejectedCandidate>,
     ) -> Result<CandidateStep, SlamError> {
         let th = self.thresholds;
-        if map.keyframe(kf).is_err() || map.keyframe(candidate).is_err() {
-            return Ok(CandidateStep::Rejected);
-        }
-        let checked = match check_candidate(map, kf, map, (candidate, score), rig, &th)? {
+        let checked = match check_candidate(
+            &detached.query_side,
+            kf,
+            (&detached.group, &detached.points),
+            score,
+            rig,
+            &th,
+        )? {
             Ok(checked) => checked,
             Err(record) => {
                 rejected.extend(record);

@@ -28,7 +28,7 @@ use super::detector::AcceptedLoop;
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::RejectedCandidate;
-use super::verify::{check_candidate, CheckedCandidate};
+use super::verify::{check_candidate, detach_group, detach_query, CheckedCandidate};
 
 /// A merge the detector accepted.
 #[derive(Debug, Clone)]
@@ -153,10 +153,13 @@ impl MergeDetector {
             let Some(map) = read_archived(tag).transpose()? else {
                 continue;
             };
-            // A candidate culled since the query is rejected by the check.
-            let active = read_active()?;
-            let checked = check_candidate(&active, kf, &map, (candidate, score), rig, &th)?;
-            drop((active, map));
+            // What the check reads is copied under short read locks (the
+            // older map's, then the active map's); the check holds none. A
+            // candidate culled since the query is rejected by the check.
+            let (group, points) = detach_group(&map, candidate, &th);
+            drop(map);
+            let query_side = detach_query(&*read_active()?, kf, &th);
+            let checked = check_candidate(&query_side, kf, (&group, &points), score, rig, &th)?;
             let checked = match checked {
                 Ok(checked) => checked,
                 Err(record) => {

@@ -80,16 +80,24 @@ pub enum Verification {
     },
 }
 
-/// The candidate and its best covisible keyframes, and their points.
-pub(crate) fn candidate_group(
-    map: &Map,
-    candidate: KeyFrameId,
-    size: usize,
-) -> (Vec<KeyFrameId>, Vec<MapPointId>) {
-    let mut group = vec![candidate];
-    group.extend(map.best_covisible(candidate, size));
+/// A loop or merge candidate with its group: the candidate and its best
+/// covisible keyframes, and the points they observe (resolved, in id order).
+#[derive(Debug, Clone)]
+pub(crate) struct CandidateGroup {
+    /// The candidate keyframe.
+    pub(crate) candidate: KeyFrameId,
+    /// The candidate, then its best covisible keyframes.
+    pub(crate) keyframes: Vec<KeyFrameId>,
+    /// The points they observe.
+    pub(crate) points: Vec<MapPointId>,
+}
+
+/// The candidate and its best `size` covisible keyframes, and their points.
+pub(crate) fn candidate_group(map: &Map, candidate: KeyFrameId, size: usize) -> CandidateGroup {
+    let mut keyframes = vec![candidate];
+    keyframes.extend(map.best_covisible(candidate, size));
     let mut points = BTreeSet::new();
-    for kf in &group {
+    for kf in &keyframes {
         if let Ok(kf) = map.keyframe(*kf) {
             points.extend(
                 kf.observed_points()
@@ -97,7 +105,32 @@ pub(crate) fn candidate_group(
             );
         }
     }
-    (group, points.into_iter().collect())
+    CandidateGroup {
+        candidate,
+        keyframes,
+        points: points.into_iter().collect(),
+    }
+}
+
+/// What a candidate's check ([`check_candidate`]) reads of the query's
+/// map: the query keyframe and the covisible keyframes that may confirm
+/// it, copied ([`Map::excerpt`]) so that the check runs with no lock held.
+pub(crate) fn detach_query(query_map: &Map, query: KeyFrameId, th: &LoopThresholds) -> Map {
+    let mut keyframes = vec![query];
+    keyframes.extend(query_map.best_covisible(query, th.confirming_covisibles));
+    query_map.excerpt(&keyframes, &[])
+}
+
+/// What a candidate's check reads of the candidate's map: its group, and
+/// a copy of the group's points.
+pub(crate) fn detach_group(
+    map: &Map,
+    candidate: KeyFrameId,
+    th: &LoopThresholds,
+) -> (CandidateGroup, Map) {
+    let group = candidate_group(map, candidate, th.group_size);
+    let points = map.excerpt(&[], &group.points);
+    (group, points)
 }
 
 /// Searches `points` around their projections at the frame's pose.
@@ -139,14 +172,29 @@ pub fn verify_across(
     rig: &CameraRig,
     th: &LoopThresholds,
 ) -> Result<Verification, SlamError> {
+    let group = candidate_group(map, candidate, th.group_size);
+    verify_group(query_map, query, &group, map, rig, th)
+}
+
+/// The check itself: the query keyframe (in `query_map`) against `group`,
+/// whose points `points_map` holds (the candidate's map, or a copy of its
+/// points: [`detach_group`]).
+fn verify_group(
+    query_map: &Map,
+    query: KeyFrameId,
+    group: &CandidateGroup,
+    points_map: &Map,
+    rig: &CameraRig,
+    th: &LoopThresholds,
+) -> Result<Verification, SlamError> {
     let rejected = |stage, count| Ok(Verification::Rejected { stage, count });
     let Ok(query_kf) = query_map.keyframe(query) else {
         return rejected(LoopStage::DescriptorMatches, 0);
     };
-    let (group, points) = candidate_group(map, candidate, th.group_size);
+    let (map, points, candidate) = (points_map, &group.points, group.candidate);
     let mut frame = Frame::from_keyframe(query_kf, rig);
     frame.map_points.iter_mut().for_each(|p| *p = None);
-    let matches = match_descriptors(&frame, map, &points, th.match_ratio)?;
+    let matches = match_descriptors(&frame, map, points, th.match_ratio)?;
     if matches.len() < th.min_matches {
         return rejected(LoopStage::DescriptorMatches, matches.len());
     }
@@ -165,12 +213,12 @@ pub fn verify_across(
     if optimised < th.min_optimised_inliers {
         return rejected(LoopStage::PoseOptimisation, optimised);
     }
-    let found = optimised + search(&mut frame, map, &points, rig, 10.0)?;
+    let found = optimised + search(&mut frame, map, points, rig, 10.0)?;
     if found < th.min_projection_matches {
         return rejected(LoopStage::Projection, found);
     }
     refine_pose(&mut frame, map, rig)?;
-    search(&mut frame, map, &points, rig, 3.0)?;
+    search(&mut frame, map, points, rig, 3.0)?;
     let matched = frame.tracked_count();
     let inliers = refine_pose(&mut frame, map, rig)?;
     tracing::debug!(
@@ -189,7 +237,7 @@ pub fn verify_across(
     }
     Ok(Verification::Verified(VerifiedLoop {
         candidate,
-        group,
+        group: group.keyframes.clone(),
         pose_cw: frame.pose_cw,
         matches: frame.map_points,
         inliers,
@@ -267,21 +315,24 @@ pub(crate) struct CheckedCandidate {
     pub(crate) confirmations: usize,
 }
 
-/// The multi-stage check of `candidate` (in `map`) for keyframe `query`
-/// (in `query_map`; the same map for a loop), then the confirmation by the
-/// query's best covisible keyframes outside the candidate's group.
+/// The multi-stage check of `group`'s candidate (its points in
+/// `points_map`) for keyframe `query` (in `query_map`; for a loop, both
+/// the same map or copies of it: [`detach_query`], [`detach_group`]),
+/// then the confirmation by the query's best covisible keyframes outside
+/// the candidate's group.
 /// `Err(Some(record))` for a candidate rejected after the descriptor
 /// stage (`score`: its retrieval similarity), `Err(None)` for one rejected
 /// at it (not worth recording).
 pub(crate) fn check_candidate(
     query_map: &Map,
     query: KeyFrameId,
-    map: &Map,
-    (candidate, score): (KeyFrameId, f32),
+    (group, points_map): (&CandidateGroup, &Map),
+    score: f32,
     rig: &CameraRig,
     th: &LoopThresholds,
 ) -> Result<Result<CheckedCandidate, Option<RejectedCandidate>>, SlamError> {
-    let verified = match verify_across(query_map, query, map, candidate, rig, th)? {
+    let candidate = group.candidate;
+    let verified = match verify_group(query_map, query, group, points_map, rig, th)? {
         Verification::Verified(v) => v,
         Verification::Rejected { stage, count } => {
             let record = (stage != LoopStage::DescriptorMatches).then_some(RejectedCandidate {
@@ -301,15 +352,21 @@ pub(crate) fn check_candidate(
             source,
         })?;
     let correction = query_pose.inverse().compose(&verified.pose_cw);
-    let (_, group_points) = candidate_group(map, candidate, th.group_size);
-    let group: BTreeSet<KeyFrameId> = verified.group.iter().copied().collect();
+    let in_group: BTreeSet<KeyFrameId> = verified.group.iter().copied().collect();
     let mut confirmations = 1;
     for other in query_map
         .best_covisible(query, th.confirming_covisibles)
         .into_iter()
-        .filter(|k| !group.contains(k))
+        .filter(|k| !in_group.contains(k))
     {
-        let c = confirm_across(query_map, other, map, &correction, &group_points, rig)?;
+        let c = confirm_across(
+            query_map,
+            other,
+            points_map,
+            &correction,
+            &group.points,
+            rig,
+        )?;
         if c.inliers >= th.min_confirmation_inliers {
             confirmations += 1;
         }
@@ -317,7 +374,7 @@ pub(crate) fn check_candidate(
     Ok(Ok(CheckedCandidate {
         verified,
         correction,
-        group_points,
+        group_points: group.points.clone(),
         confirmations,
     }))
 }

@@ -38,6 +38,7 @@ mod covisibility;
 mod culling;
 mod descriptor;
 mod error;
+mod excerpt;
 mod ids;
 mod invariants;
 mod keyframe;

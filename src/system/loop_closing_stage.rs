@@ -201,8 +201,8 @@ impl LoopClosingStage {
             return Ok(step);
         };
         // One short read lock per detection step, none across the whole
-        // detection: local mapping and tracking wait for at most one
-        // candidate's check.
+        // detection; a candidate's check holds it only to copy what it
+        // reads, then runs on the copy.
         let read = || map.read().map_err(|_| SlamError::PoisonedMap);
         let outcome = self.detector.process_with(read, kf, rig)?;
         let map = map.read().map_err(|_| SlamError::PoisonedMap)?;
