@@ -119,8 +119,9 @@ struct PendingLoop {
 /// What one candidate's check reads, copied out of the map under a short
 /// read lock ([`LoopDetector::verify_candidate`]).
 struct DetachedCheck {
-    /// The query keyframe and the covisible keyframes that may confirm it.
-    query_side: Map,
+    /// The query keyframe and the covisible keyframes that may confirm it
+    /// (copied once per detection, shared by its candidates).
+    query_side: Arc<Map>,
     /// The candidate's group.
     group: CandidateGroup,
     /// A copy of the group's points.
@@ -260,6 +261,12 @@ impl LoopDetector {
         let Some(rows) = float_rows(&keyframe.measurements.descriptors) else {
             return Ok(None);
         };
+        self.describe_rows(rows)
+    }
+
+    /// The global descriptor of a keyframe's descriptor rows (row-major
+    /// floats); `None` when they do not fit the codebook's width.
+    fn describe_rows(&self, rows: &[f32]) -> Result<Option<Vec<f32>>, SlamError> {
         if rows.len() % self.descriptor.local_dim() != 0 {
             return Ok(None);
         }
@@ -331,22 +338,40 @@ impl LoopDetector {
         rig: &CameraRig,
     ) -> Result<DetectionOutcome, SlamError> {
         let mut outcome = DetectionOutcome::default();
-        let planned = self.plan(&*read()?, kf)?;
-        let Some((descriptor, plan)) = planned else {
+        // The keyframe's global descriptor (a few ms) is computed from a
+        // copy of its descriptor rows, outside the lock.
+        let rows = {
+            let map = read()?;
+            self.forget_culled(&map)?;
+            map.keyframe(kf)
+                .ok()
+                .and_then(|keyframe| float_rows(&keyframe.measurements.descriptors))
+                .map(<[f32]>::to_vec)
+        };
+        let Some(descriptor) = rows
+            .map(|rows| self.describe_rows(&rows))
+            .transpose()?
+            .flatten()
+        else {
             return Ok(outcome);
         };
+        let plan = self.plan_for(&*read()?, kf, &descriptor)?;
         match plan {
             DetectionPlan::Confirm => {
                 outcome.accepted =
                     self.confirm_pending(&*read()?, kf, rig, &mut outcome.rejected)?;
             }
             DetectionPlan::Candidates(candidates) => {
+                let mut query_side = None;
                 for candidate in candidates {
                     // What the check reads is copied under one short read
                     // lock; the check itself (tens of ms) holds none.
-                    let Some(detached) = self.detach(&*read()?, kf, candidate.0) else {
+                    let Some(detached) =
+                        self.detach(&*read()?, kf, candidate.0, query_side.as_ref())
+                    else {
                         continue;
                     };
+                    query_side = Some(Arc::clone(&detached.query_side));
                     let step =
                         self.check_detached(&detached, kf, candidate, rig, &mut outcome.rejected)?;
                     match step {
@@ -379,17 +404,28 @@ impl LoopDetector {
         let Some(descriptor) = self.describe(map, kf)? else {
             return Ok(None);
         };
-        let plan = if self.pending.is_some() {
+        let plan = self.plan_for(map, kf, &descriptor)?;
+        Ok(Some((descriptor, plan)))
+    }
+
+    /// What to do for keyframe `kf` with global descriptor `descriptor`:
+    /// confirm the pending loop, or check the database's candidates.
+    fn plan_for(
+        &self,
+        map: &Map,
+        kf: KeyFrameId,
+        descriptor: &[f32],
+    ) -> Result<DetectionPlan, SlamError> {
+        Ok(if self.pending.is_some() {
             DetectionPlan::Confirm
         } else if map.keyframe_count() >= self.thresholds.min_keyframes {
             let exclude = Self::neighbourhood(map, kf);
             let candidates =
-                self.candidates(map, &descriptor, &exclude, self.thresholds.candidates)?;
+                self.candidates(map, descriptor, &exclude, self.thresholds.candidates)?;
             DetectionPlan::Candidates(candidates)
         } else {
             DetectionPlan::Nothing
-        };
-        Ok(Some((descriptor, plan)))
+        })
     }
 
     /// The last step: keyframe `kf` enters the database with its global
@@ -424,21 +460,31 @@ impl LoopDetector {
         rig: &CameraRig,
         rejected: &mut Vec<RejectedCandidate>,
     ) -> Result<CandidateStep, SlamError> {
-        let Some(detached) = self.detach(map, kf, candidate.0) else {
+        let Some(detached) = self.detach(map, kf, candidate.0, None) else {
             return Ok(CandidateStep::Rejected);
         };
         self.check_detached(&detached, kf, candidate, rig, rejected)
     }
 
     /// Copies what the check of `candidate` for `kf` reads (`None` when
-    /// either was culled since the plan).
-    fn detach(&self, map: &Map, kf: KeyFrameId, candidate: KeyFrameId) -> Option<DetachedCheck> {
+    /// either was culled since the plan); the query's side is copied
+    /// unless `query_side` (an earlier candidate's) is given.
+    fn detach(
+        &self,
+        map: &Map,
+        kf: KeyFrameId,
+        candidate: KeyFrameId,
+        query_side: Option<&Arc<Map>>,
+    ) -> Option<DetachedCheck> {
         if map.keyframe(kf).is_err() || map.keyframe(candidate).is_err() {
             return None;
         }
         let (group, points) = detach_group(map, candidate, &self.thresholds);
+        let query_side = query_side
+            .map(Arc::clone)
+            .unwrap_or_else(|| Arc::new(detach_query(map, kf, &self.thresholds)));
         Some(DetachedCheck {
-            query_side: detach_query(map, kf, &self.thresholds),
+            query_side,
             group,
             points,
         })
