@@ -267,7 +267,7 @@ impl LoopDetector {
     /// The global descriptor of a keyframe's descriptor rows (row-major
     /// floats); `None` when they do not fit the codebook's width.
     fn describe_rows(&self, rows: &[f32]) -> Result<Option<Vec<f32>>, SlamError> {
-        if rows.len() % self.descriptor.local_dim() != 0 {
+        if !rows.len().is_multiple_of(self.descriptor.local_dim()) {
             return Ok(None);
         }
         self.descriptor
