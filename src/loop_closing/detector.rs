@@ -31,8 +31,8 @@ use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::{
-    check_candidate, confirm_with, detach_group, detach_query, CandidateGroup, CheckedCandidate,
-    LoopStage, RejectedCandidate, VerifiedLoop,
+    candidate_group, check_candidate, confirm_with, detach_group, detach_query, CandidateGroup,
+    CheckedCandidate, LoopStage, RejectedCandidate, VerifiedLoop,
 };
 
 /// A loop the detector accepted: the query keyframe's pose in the loop's
@@ -82,7 +82,7 @@ pub struct DetectionOutcome {
     pub descriptor: Option<Vec<f32>>,
 }
 
-/// What [`LoopDetector::plan`] says to do with a keyframe next.
+/// What [`LoopDetector::process_with`] does with a keyframe after its global descriptor.
 #[derive(Debug, Clone, PartialEq)]
 pub enum DetectionPlan {
     /// Nothing: the map has too few keyframes for a loop.
@@ -255,13 +255,10 @@ impl LoopDetector {
     /// The global descriptor of a keyframe; `None` without float rows
     /// (binary descriptors: no VLAD codebook applies).
     pub fn describe(&self, map: &Map, kf: KeyFrameId) -> Result<Option<Vec<f32>>, SlamError> {
-        let Ok(keyframe) = map.keyframe(kf) else {
-            return Ok(None);
-        };
-        let Some(rows) = float_rows(&keyframe.measurements.descriptors) else {
-            return Ok(None);
-        };
-        self.describe_rows(rows)
+        match keyframe_rows(map, kf) {
+            Some(rows) => self.describe_rows(rows),
+            None => Ok(None),
+        }
     }
 
     /// The global descriptor of a keyframe's descriptor rows (row-major
@@ -322,7 +319,8 @@ impl LoopDetector {
         self.process_with(|| Ok(map), kf, rig)
     }
 
-    /// The detection's steps: [`Self::plan`], then [`Self::confirm_pending`]
+    /// The detection's steps: the keyframe's global descriptor and the
+    /// database query, then [`Self::confirm_pending`]
     /// or [`Self::verify_candidate`] for each candidate until one is
     /// verified, then [`Self::record`]. `read` gives the map for one step;
     /// a caller that shares the map with other threads passes a read lock,
@@ -343,10 +341,7 @@ impl LoopDetector {
         let rows = {
             let map = read()?;
             self.forget_culled(&map)?;
-            map.keyframe(kf)
-                .ok()
-                .and_then(|keyframe| float_rows(&keyframe.measurements.descriptors))
-                .map(<[f32]>::to_vec)
+            keyframe_rows(&map, kf).map(<[f32]>::to_vec)
         };
         let Some(descriptor) = rows
             .map(|rows| self.describe_rows(&rows))
@@ -372,8 +367,14 @@ impl LoopDetector {
                         continue;
                     };
                     query_side = Some(Arc::clone(&detached.query_side));
-                    let step =
-                        self.check_detached(&detached, kf, candidate, rig, &mut outcome.rejected)?;
+                    let step = self.check_group(
+                        &detached.query_side,
+                        kf,
+                        (&detached.group, &detached.points),
+                        candidate.1,
+                        rig,
+                        &mut outcome.rejected,
+                    )?;
                     match step {
                         CandidateStep::Rejected => continue,
                         CandidateStep::Pending => break,
@@ -391,25 +392,9 @@ impl LoopDetector {
         Ok(outcome)
     }
 
-    /// The first step for keyframe `kf` (short: culled keyframes leave the
-    /// database, the keyframe's global descriptor, the database query):
-    /// its descriptor and what to do next. `None` for a keyframe without a
-    /// global descriptor (binary descriptors, or culled).
-    pub fn plan(
-        &mut self,
-        map: &Map,
-        kf: KeyFrameId,
-    ) -> Result<Option<(Vec<f32>, DetectionPlan)>, SlamError> {
-        self.forget_culled(map)?;
-        let Some(descriptor) = self.describe(map, kf)? else {
-            return Ok(None);
-        };
-        let plan = self.plan_for(map, kf, &descriptor)?;
-        Ok(Some((descriptor, plan)))
-    }
-
-    /// What to do for keyframe `kf` with global descriptor `descriptor`:
-    /// confirm the pending loop, or check the database's candidates.
+    /// The first step's plan for keyframe `kf` with global descriptor
+    /// `descriptor` (short: the database query): confirm the pending loop,
+    /// or check the database's candidates.
     fn plan_for(
         &self,
         map: &Map,
@@ -460,10 +445,11 @@ impl LoopDetector {
         rig: &CameraRig,
         rejected: &mut Vec<RejectedCandidate>,
     ) -> Result<CandidateStep, SlamError> {
-        let Some(detached) = self.detach(map, kf, candidate.0, None) else {
+        if map.keyframe(kf).is_err() || map.keyframe(candidate.0).is_err() {
             return Ok(CandidateStep::Rejected);
-        };
-        self.check_detached(&detached, kf, candidate, rig, rejected)
+        }
+        let group = candidate_group(map, candidate.0, self.thresholds.group_size);
+        self.check_group(map, kf, (&group, map), candidate.1, rig, rejected)
     }
 
     /// Copies what the check of `candidate` for `kf` reads (`None` when
@@ -490,24 +476,21 @@ impl LoopDetector {
         })
     }
 
-    /// [`Self::verify_candidate`] on copies made by [`Self::detach`].
-    fn check_detached(
+    /// [`Self::verify_candidate`] with the query in `query_map` and the
+    /// group's points in `points_map` (the map itself, or the copies made
+    /// by [`Self::detach`]).
+    fn check_group(
         &mut self,
-        detached: &DetachedCheck,
+        query_map: &Map,
         kf: KeyFrameId,
-        (candidate, score): (KeyFrameId, f32),
+        (group, points_map): (&CandidateGroup, &Map),
+        score: f32,
         rig: &CameraRig,
         rejected: &mut Vec<RejectedCandidate>,
     ) -> Result<CandidateStep, SlamError> {
         let th = self.thresholds;
-        let checked = match check_candidate(
-            &detached.query_side,
-            kf,
-            (&detached.group, &detached.points),
-            score,
-            rig,
-            &th,
-        )? {
+        let candidate = group.candidate;
+        let checked = match check_candidate(query_map, kf, (group, points_map), score, rig, &th)? {
             Ok(checked) => checked,
             Err(record) => {
                 rejected.extend(record);
@@ -592,4 +575,11 @@ impl LoopDetector {
         self.pending = Some(streak);
         Ok(None)
     }
+}
+
+/// A live keyframe's descriptor rows (row-major floats); `None` when it is
+/// culled or its descriptors are binary.
+fn keyframe_rows(map: &Map, kf: KeyFrameId) -> Option<&[f32]> {
+    let keyframe = map.keyframe(kf).ok()?;
+    float_rows(&keyframe.measurements.descriptors)
 }

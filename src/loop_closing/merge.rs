@@ -149,6 +149,8 @@ impl MergeDetector {
         }
         candidates.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
         candidates.truncate(th.candidates);
+        // The query's side is copied once and shared by the candidates.
+        let mut query_side = None;
         for (score, tag, candidate) in candidates {
             let Some(map) = read_archived(tag).transpose()? else {
                 continue;
@@ -158,8 +160,12 @@ impl MergeDetector {
             // candidate culled since the query is rejected by the check.
             let (group, points) = detach_group(&map, candidate, &th);
             drop(map);
-            let query_side = detach_query(&*read_active()?, kf, &th);
-            let checked = check_candidate(&query_side, kf, (&group, &points), score, rig, &th)?;
+            let query_map = match query_side.take() {
+                Some(copy) => copy,
+                None => detach_query(&*read_active()?, kf, &th),
+            };
+            let checked = check_candidate(&query_map, kf, (&group, &points), score, rig, &th)?;
+            query_side = Some(query_map);
             let checked = match checked {
                 Ok(checked) => checked,
                 Err(record) => {
