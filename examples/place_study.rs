@@ -25,19 +25,19 @@ struct Frame {
 
 fn load_poses(path: &std::path::Path) -> anyhow::Result<Vec<[f64; 12]>> {
     let text = std::fs::read_to_string(path)?;
-    Ok(text
-        .lines()
+    text.lines()
         .filter(|l| !l.trim().is_empty())
-        .map(|l| {
+        .enumerate()
+        .map(|(i, l)| {
             let v: Vec<f64> = l
                 .split_whitespace()
-                .map(|x| x.parse().unwrap_or(0.0))
-                .collect();
-            let mut a = [0.0; 12];
-            a.copy_from_slice(&v[..12]);
-            a
+                .map(str::parse)
+                .collect::<Result<_, _>>()
+                .map_err(|e| anyhow::anyhow!("{}: line {}: {e}", path.display(), i + 1))?;
+            <[f64; 12]>::try_from(v.as_slice())
+                .map_err(|_| anyhow::anyhow!("{}: line {}: not 12 numbers", path.display(), i + 1))
         })
-        .collect())
+        .collect()
 }
 
 fn features(dir: &std::path::Path, cache: &std::path::Path) -> anyhow::Result<Vec<Frame>> {
@@ -46,18 +46,23 @@ fn features(dir: &std::path::Path, cache: &std::path::Path) -> anyhow::Result<Ve
         f.read_to_end(&mut bytes)?;
         let mut frames = Vec::new();
         let mut at = 0;
-        let u32_at = |b: &[u8], i: usize| u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+        let u32_at = |b: &[u8], i: usize| -> anyhow::Result<u32> {
+            b.get(i..i + 4)
+                .and_then(|w| <[u8; 4]>::try_from(w).ok())
+                .map(u32::from_le_bytes)
+                .ok_or_else(|| anyhow::anyhow!("{} is truncated: delete it", cache.display()))
+        };
         while at < bytes.len() {
-            let n = u32_at(&bytes, at) as usize;
+            let n = u32_at(&bytes, at)? as usize;
             at += 4;
             let mut responses = Vec::with_capacity(n);
             for _ in 0..n {
-                responses.push(f32::from_bits(u32_at(&bytes, at)));
+                responses.push(f32::from_bits(u32_at(&bytes, at)?));
                 at += 4;
             }
             let mut descriptors = Vec::with_capacity(n * 256);
             for _ in 0..n * 256 {
-                descriptors.push(f32::from_bits(u32_at(&bytes, at)));
+                descriptors.push(f32::from_bits(u32_at(&bytes, at)?));
                 at += 4;
             }
             frames.push(Frame {
@@ -109,7 +114,9 @@ fn study_config() -> spslam::features::ExtractorConfig {
 
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let dir = PathBuf::from(&args[0]);
+    let Some(dir) = args.first().map(PathBuf::from) else {
+        anyhow::bail!("usage: place_study SYNTH_DIR [CACHE_FILE]");
+    };
     let cache = args
         .get(1)
         .map(PathBuf::from)
@@ -212,7 +219,7 @@ fn main() -> anyhow::Result<()> {
         }
     }
     for (name, make) in &variants {
-        let g: Vec<Option<Vec<f32>>> = frames.iter().map(|f| make(f)).collect();
+        let g: Vec<Option<Vec<f32>>> = frames.iter().map(make).collect();
         for centred in [false, true] {
             let mut hits = [0usize; 3];
             for &q in &queries {
