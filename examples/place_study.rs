@@ -19,7 +19,6 @@ use spslam::place::{Codebook, GlobalDescriptor};
 use spslam::settings::{ExtractorSettings, DEFAULT_SUPERPOINT_LEVELS};
 
 struct Frame {
-    responses: Vec<f32>,
     descriptors: Vec<f32>,
 }
 
@@ -55,26 +54,16 @@ fn features(dir: &std::path::Path, cache: &std::path::Path) -> anyhow::Result<Ve
         while at < bytes.len() {
             let n = u32_at(&bytes, at)? as usize;
             at += 4;
-            let mut responses = Vec::with_capacity(n);
-            for _ in 0..n {
-                responses.push(f32::from_bits(u32_at(&bytes, at)?));
-                at += 4;
-            }
             let mut descriptors = Vec::with_capacity(n * 256);
             for _ in 0..n * 256 {
                 descriptors.push(f32::from_bits(u32_at(&bytes, at)?));
                 at += 4;
             }
-            frames.push(Frame {
-                responses,
-                descriptors,
-            });
+            frames.push(Frame { descriptors });
         }
         return Ok(frames);
     }
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let config = study_config();
-    let _ = cores;
     let mut extractor = SuperPointExtractor::new(config)?;
     let mut images: Vec<PathBuf> = std::fs::read_dir(dir.join("sequences/00/image_0"))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -85,16 +74,11 @@ fn features(dir: &std::path::Path, cache: &std::path::Path) -> anyhow::Result<Ve
     for p in &images {
         let img = GrayImage::load(p)?;
         let f = extractor.extract(img.view())?;
-        let responses: Vec<f32> = f.keypoints.iter().map(|k| k.response).collect();
-        out.write_all(&(responses.len() as u32).to_le_bytes())?;
-        for r in &responses {
-            out.write_all(&r.to_bits().to_le_bytes())?;
-        }
+        out.write_all(&(f.keypoints.len() as u32).to_le_bytes())?;
         for d in &f.descriptors {
             out.write_all(&d.to_bits().to_le_bytes())?;
         }
         frames.push(Frame {
-            responses,
             descriptors: f.descriptors,
         });
     }
@@ -150,36 +134,12 @@ fn main() -> anyhow::Result<()> {
     let queries: Vec<usize> = (0..n).filter(|&i| !truth[i].is_empty()).collect();
     println!("{n} frames, {} revisiting queries", queries.len());
 
-    type Variant = (&'static str, Box<dyn Fn(&Frame) -> Option<Vec<f32>>>);
-    let top = |k: usize| {
-        let v = vlad.clone();
-        move |f: &Frame| -> Option<Vec<f32>> {
-            let mut order: Vec<usize> = (0..f.responses.len()).collect();
-            order.sort_by(|&a, &b| f.responses[b].total_cmp(&f.responses[a]));
-            let flat: Vec<f32> = order
-                .iter()
-                .take(k)
-                .flat_map(|&i| f.descriptors[i * 256..(i + 1) * 256].iter().copied())
-                .collect();
-            v.compute_flat(&flat).ok()
-        }
-    };
-    let base = {
-        let v = vlad.clone();
-        move |f: &Frame| v.compute_flat(&f.descriptors).ok()
-    };
-    let variants: Vec<Variant> = vec![
-        ("all keypoints", Box::new(base)),
-        ("strongest 500", Box::new(top(500))),
-        ("strongest 300", Box::new(top(300))),
-        ("strongest 150", Box::new(top(150))),
-    ];
+    let g: Vec<Option<Vec<f32>>> = frames
+        .iter()
+        .map(|f| vlad.compute_flat(&f.descriptors).ok())
+        .collect();
     // The keyframe database's grouped query, as `spslam loops` runs it.
     {
-        let g: Vec<Option<Vec<f32>>> = frames
-            .iter()
-            .map(|f| vlad.compute_flat(&f.descriptors).ok())
-            .collect();
         for (ratio, group) in [(0.8f32, 10usize), (0.9, 10), (0.95, 10), (0.8, 0), (0.9, 4)] {
             let options = spslam::place::QueryOptions {
                 n_best: 3,
@@ -218,56 +178,30 @@ fn main() -> anyhow::Result<()> {
             );
         }
     }
-    for (name, make) in &variants {
-        let g: Vec<Option<Vec<f32>>> = frames.iter().map(make).collect();
-        for centred in [false, true] {
-            let mut hits = [0usize; 3];
-            for &q in &queries {
-                let Some(gq) = &g[q] else { continue };
-                let db: Vec<usize> = (0..q.saturating_sub(10))
-                    .filter(|&j| g[j].is_some())
-                    .collect();
-                // Centring: subtract the mean of the database's descriptors.
-                let mean: Vec<f32> = if centred {
-                    let mut m = vec![0f32; gq.len()];
-                    for &j in &db {
-                        for (a, b) in m.iter_mut().zip(g[j].as_ref().unwrap_or(gq)) {
-                            *a += b;
-                        }
-                    }
-                    m.iter().map(|v| v / db.len().max(1) as f32).collect()
-                } else {
-                    vec![0f32; gq.len()]
-                };
-                let score = |x: &[f32]| -> f32 {
-                    let (mut dot, mut nq, mut nx) = (0f32, 0f32, 0f32);
-                    for ((a, b), m) in gq.iter().zip(x).zip(&mean) {
-                        let (a, b) = (a - m, b - m);
-                        dot += a * b;
-                        nq += a * a;
-                        nx += b * b;
-                    }
-                    dot / (nq.sqrt() * nx.sqrt()).max(1e-12)
-                };
-                let mut ranked: Vec<(f32, usize)> = db
-                    .iter()
-                    .map(|&j| (score(g[j].as_deref().unwrap_or(&[])), j))
-                    .collect();
-                ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
-                for (h, k) in hits.iter_mut().zip([1usize, 3, 10]) {
-                    if ranked.iter().take(k).any(|(_, j)| truth[q].contains(j)) {
-                        *h += 1;
-                    }
-                }
+    // Plain ranking by similarity (the VLADs are unit vectors), over every
+    // frame older than the recent window.
+    let mut hits = [0usize; 3];
+    for &q in &queries {
+        let Some(gq) = &g[q] else { continue };
+        let mut ranked: Vec<(f32, usize)> = (0..q.saturating_sub(10))
+            .filter_map(|j| {
+                let x = g[j].as_ref()?;
+                Some((gq.iter().zip(x).map(|(a, b)| a * b).sum::<f32>(), j))
+            })
+            .collect();
+        ranked.sort_by(|a, b| b.0.total_cmp(&a.0));
+        for (h, k) in hits.iter_mut().zip([1usize, 3, 10]) {
+            if ranked.iter().take(k).any(|(_, j)| truth[q].contains(j)) {
+                *h += 1;
             }
-            let nq = queries.len().max(1) as f64;
-            println!(
-                "{name:>16} centred={centred:5}: recall@1 {:.3} @3 {:.3} @10 {:.3}",
-                hits[0] as f64 / nq,
-                hits[1] as f64 / nq,
-                hits[2] as f64 / nq
-            );
         }
     }
+    let nq = queries.len().max(1) as f64;
+    println!(
+        "ranked by similarity: recall@1 {:.3} @3 {:.3} @10 {:.3}",
+        hits[0] as f64 / nq,
+        hits[1] as f64 / nq,
+        hits[2] as f64 / nq
+    );
     Ok(())
 }
