@@ -9,7 +9,9 @@
 //! are cached in CACHE_FILE (default SYNTH_DIR/place_study.bin). A query
 //! revisits when an earlier frame, at least 30 frames older, lies within
 //! 3 m and 20° of it; its true views are those frames. The database holds
-//! every frame older than 10 frames. Prints recall@1/@3/@10 per variant.
+//! every frame older than 10 frames. Prints the database query's recall@3
+//! for several score ratios and group sizes, and recall@1/@3/@10 of plain
+//! ranking by similarity.
 
 use std::io::{Read, Write};
 use std::path::PathBuf;
