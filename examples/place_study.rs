@@ -1,5 +1,5 @@
 //! Retrieval study: where does VLAD rank the true earlier view of a
-//! revisiting frame, for several ways of building the global descriptor?
+//! revisiting frame, for several ways of querying the keyframe database?
 //!
 //! ```sh
 //! cargo run --release --example place_study -- SYNTH_DIR [CACHE_FILE]
