@@ -5,6 +5,9 @@
 #   fuzz/run.sh long [ARGS...]   # the long run: AddressSanitizer + LeakSanitizer
 #                                # (nightly toolchain), libFuzzer ARGS appended,
 #                                # e.g. -runs=10000000 -jobs=2 -workers=2
+#   fuzz/run.sh campaign [ARGS...] # the stable build, libFuzzer ARGS appended
+#                                # (no sanitizer: the fastest, for counts),
+#                                # e.g. -runs=5000000 -jobs=2 -workers=2
 #
 # Stable Rust cannot build with AddressSanitizer (-Zsanitizer), so the short
 # run checks for crashes, panics and failed assertions only; the long run, on
@@ -31,14 +34,14 @@ flags+=" -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanit
 flags+=" -Cdebug-assertions -Coverflow-checks"
 target=x86_64-unknown-linux-gnu
 case "$mode" in
-  short)
+  short|campaign)
     toolchain=()
     target_dir=target/stable ;;
   long)
     toolchain=(+nightly)
     flags+=" -Zsanitizer=address -Cforce-frame-pointers"
     target_dir=target/asan ;;
-  *) echo "usage: fuzz/run.sh short|long [libFuzzer args]" >&2; exit 2 ;;
+  *) echo "usage: fuzz/run.sh short|long|campaign [libFuzzer args]" >&2; exit 2 ;;
 esac
 
 # --target keeps the flags off build scripts and proc macros (as cargo fuzz does).
@@ -60,5 +63,5 @@ if (( ${#existing[@]} )); then
 fi
 case "$mode" in
   short) "$bin" -max_len=1024 -max_total_time=60 -print_final_stats=1 -artifact_prefix=artifacts/ corpus/c_abi target/seeds ;;
-  long) "$bin" -max_len=1024 -print_final_stats=1 -artifact_prefix=artifacts/ "$@" corpus/c_abi target/seeds ;;
+  long|campaign) "$bin" -max_len=1024 -print_final_stats=1 -artifact_prefix=artifacts/ "$@" corpus/c_abi target/seeds ;;
 esac

@@ -22,7 +22,11 @@ use spslam::settings::SlamSettings;
 use spslam::system::SlamSystem;
 use spslam::tracking::Frontend;
 
+use common::sensor_runs::{orb_system, run_sensor, DepthNoise};
 use common::synthetic_slam::{rig_of, run_against_truth, small_lap};
+use spslam::camera::Sensor;
+use spslam::eval::{ate, Alignment};
+use spslam::tracking::TrackingState;
 
 type ExtractorBox = Box<dyn FeatureExtractor>;
 
@@ -76,7 +80,7 @@ fn orb_tracks_the_whole_lap_when_mapping_lags_five_frames() {
     let orb = || -> ExtractorBox {
         Box::new(OrbExtractor::new(OrbConfig::default()).unwrap_or_else(|e| panic!("{e}")))
     };
-    // Measured (Intel Xeon VNNI): ATE 0.397 m over 231.4 m (0.17 %); the
+    // Measured (Intel Xeon VNNI, 2026-11-29): ATE 0.303 m over 231.4 m (0.131 %); the
     // run without the lag drifts more on these frames, 1.41 m. The bound
     // leaves 2×.
     check_lagged_lap("ORB", &orb, 5, 0.35);
@@ -101,4 +105,90 @@ fn superpoint_tracks_the_whole_lap_when_mapping_lags_five_frames() {
     // larger of the two; what this test guards first is that the lagged
     // lap is tracked whole, in one map.
     check_lagged_lap("SuperPoint + ANMS", &sp, 5, 1.0);
+}
+
+/// Runs the lap as `sensor` with ORB, mapping inline with `lag` frames per
+/// keyframe (0: no lag); returns the untracked frames, the maps left
+/// unmerged, the keyframes and the ATE as a percentage of the path (SE3,
+/// Sim3 for monocular frames after the initialisation).
+fn orb_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64) {
+    let sequence = small_lap(SceneName::Loop);
+    let mut slam = orb_system(&sequence, sensor);
+    if lag > 0 {
+        ok(slam.set_mapping_lag(Some(lag)));
+    }
+    let run = run_sensor(&sequence, &mut slam, sensor, DepthNoise::KINECT_TUM, 0);
+    let summary = ok(slam.summary());
+    let maps = summary
+        .maps
+        .iter()
+        .filter(|m| m.merged_into.is_none())
+        .count();
+    let first = run
+        .records
+        .iter()
+        .find(|r| r.state == TrackingState::Ok)
+        .map_or(0, |r| r.index);
+    let lost: Vec<usize> = run
+        .records
+        .iter()
+        .filter(|r| r.index >= first && r.state != TrackingState::Ok)
+        .map(|r| r.index)
+        .collect();
+    let keep: Vec<usize> = (first..run.truth.len()).collect();
+    let (truth, estimate) = run.trajectories();
+    let (truth, estimate) = (truth.select(&keep), estimate.select(&keep));
+    let alignment = if sensor == Sensor::Monocular {
+        Alignment::Sim3
+    } else {
+        Alignment::Se3
+    };
+    let result = ok(ate(&truth, &estimate, alignment));
+    let percent = 100.0 * result.stats.rmse / run.path_length();
+    eprintln!(
+        "ORB {sensor:?}, mapping lag {lag}: lost {lost:?}, {maps} maps, {} keyframes, ATE {:.3} m ({percent:.3} % of {:.1} m)",
+        summary.keyframes_inserted,
+        result.stats.rmse,
+        run.path_length()
+    );
+    (lost, maps, summary.keyframes_inserted, percent)
+}
+
+#[test]
+fn rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames_as_well_as_without_the_lag() {
+    let (lost, maps, _, quiet) = orb_sensor_lap(Sensor::Rgbd, 0);
+    assert!(
+        lost.is_empty() && maps == 1,
+        "without the lag: lost {lost:?}, {maps} maps"
+    );
+    let (lost, maps, _, lagged) = orb_sensor_lap(Sensor::Rgbd, 5);
+    assert!(lost.is_empty(), "frames not tracked: {lost:?}");
+    assert_eq!(maps, 1, "maps left unmerged");
+    // Measured (Intel Xeon VNNI; ORB's outputs do not depend on the CPU
+    // kind): 0.077 % of the path with and without the lag (0.179 and
+    // 0.178 m over 231.4 m). The issue's bound: within 1.5× of the quiet
+    // run; and 2× over the measured fraction of the path.
+    assert!(
+        lagged <= 1.5 * quiet,
+        "ATE {lagged:.3} % with the lag, {quiet:.3} % without"
+    );
+    assert!(lagged <= 0.15, "ATE {lagged:.3} % of the path");
+}
+
+/// Monocular tracking when mapping lags (issue 25's target is every frame;
+/// not met). A monocular camera's new points come only from local
+/// mapping's triangulation, so keyframes that wait for a slow mapper leave
+/// tracking without points in the turns. The monocular rule (weak frames
+/// are keyframes through condition 1c, and a keyframe wanted while mapping
+/// is busy interrupts its BA: `tracking::keyframe::needs_keyframe`) took
+/// this lap from 72 lost frames in 12 maps to 15 in 4 (three of its four
+/// corners, 5 frames each); the run without the lag tracks every frame
+/// (0.552 m Sim3, 0.24 % of the path). The bound guards the gain.
+#[test]
+fn monocular_keeps_the_lap_but_its_corners_when_mapping_lags_five_frames() {
+    let (lost, maps, keyframes, _) = orb_sensor_lap(Sensor::Monocular, 5);
+    assert!(lost.len() <= 15, "{} frames lost: {lost:?}", lost.len());
+    assert!(maps <= 4, "{maps} maps");
+    // Measured: 118 keyframes (one per two frames, as a busy mapper allows).
+    assert!(keyframes >= 100, "{keyframes} keyframes");
 }

@@ -1,7 +1,7 @@
 //! The system layer on synthetic sequences with exact ground truth (ORB,
 //! 480×360): a kidnapped camera resumes in a new atlas map without losing
 //! a trajectory row, and tracking completes frames while local mapping's
-//! BA is being solved, which the new keyframes then abort.
+//! BA is being solved, which the new stereo keyframes leave to finish.
 
 mod common;
 
@@ -88,7 +88,7 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
 }
 
 #[test]
-fn tracking_goes_on_while_local_ba_is_solved_and_new_keyframes_abort_it() {
+fn tracking_goes_on_while_local_ba_is_solved_and_queued_stereo_keyframes_let_it_finish() {
     let sequence = small_sequence(SceneName::Straight, 80);
     let mut slam = orb_slam(&sequence);
     let (entered_tx, entered_rx) = mpsc::channel::<()>();
@@ -156,16 +156,28 @@ fn tracking_goes_on_while_local_ba_is_solved_and_new_keyframes_abort_it() {
     }
     ok(slam.finish());
     assert!(released_by_test.load(Ordering::Acquire));
-    // The held BA saw the abort raised by the queued keyframes and stopped
-    // before its first iteration.
+    // The queued keyframes did not abort the held BA (ORB-SLAM3's
+    // InsertKeyFrame would have): stereo keyframes bring their own points,
+    // and an aborted BA for every queued keyframe drifts a slow machine's
+    // lap (tracking::keyframe::needs_keyframe). Only monocular tracking
+    // interrupts it. No BA of the run was aborted.
     let aborted: Vec<usize> = slam
         .records()
         .iter()
         .filter(|r| r.mapping.as_ref().is_some_and(|m| m.bundle.aborted))
         .map(|r| r.index)
         .collect();
-    eprintln!("aborted BAs at frames {aborted:?}");
-    assert!(!aborted.is_empty(), "the held BA was not aborted");
+    assert!(aborted.is_empty(), "BAs aborted at frames {aborted:?}");
+    let solved = slam
+        .records()
+        .iter()
+        .filter(|r| {
+            r.mapping
+                .as_ref()
+                .is_some_and(|m| m.bundle.local_keyframes > 0)
+        })
+        .count();
+    assert!(solved > 0, "no local BA was solved");
     let lost: Vec<usize> = common::untracked(slam.records());
     assert!(lost.is_empty(), "lost frames {lost:?}");
 }

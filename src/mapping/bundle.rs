@@ -32,7 +32,8 @@ pub struct BundleSummary {
     pub points: usize,
     /// Observations erased as outliers.
     pub outliers_erased: usize,
-    /// Whether tracking's new keyframe aborted it early.
+    /// Whether tracking aborted it early (a monocular keyframe wanted while
+    /// mapping was busy).
     pub aborted: bool,
 }
 

@@ -17,7 +17,7 @@ mod triangulate;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, RwLockReadGuard, RwLockWriteGuard};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 pub use bundle::{BundleSummary, MAX_FIXED_KEYFRAMES, MAX_LOCAL_KEYFRAMES};
 pub(crate) use bundle_problem::build_map_bundle;
@@ -108,7 +108,18 @@ pub struct LocalMapper {
     /// local mapping keeps up `slowdown` times more slowly. 1 (the
     /// default) is off; inline mapping ignores it.
     pub slowdown: f64,
+    /// The slow-machine hook's wait before the next local BA (see
+    /// [`Self::set_wait_before_bundle`]).
+    wait_before_bundle: Duration,
+    /// How long the last keyframe waited before its BA.
+    waited_before_bundle: Duration,
 }
+
+/// The share of a keyframe's mapping time spent before its local BA
+/// (processing, triangulation, fusion): SuperPoint + ANMS at 480×360,
+/// 42 of 107 ms per keyframe (BA 65 ms). The slow-machine hooks split
+/// their delay by it, so that an interrupted BA ends the delay early.
+pub const BEFORE_BUNDLE_SHARE: f64 = 0.4;
 
 impl std::fmt::Debug for LocalMapper {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -118,6 +129,7 @@ impl std::fmt::Debug for LocalMapper {
             .field("keyframe_culling", &self.keyframe_culling)
             .field("check_invariants", &self.check_invariants)
             .field("slowdown", &self.slowdown)
+            .field("wait_before_bundle", &self.wait_before_bundle)
             .finish_non_exhaustive()
     }
 }
@@ -151,6 +163,8 @@ impl LocalMapper {
             keyframe_culling: true,
             check_invariants: cfg!(debug_assertions),
             slowdown: 1.0,
+            wait_before_bundle: Duration::ZERO,
+            waited_before_bundle: Duration::ZERO,
         }
     }
 
@@ -165,15 +179,47 @@ impl LocalMapper {
             keyframe_culling: self.keyframe_culling,
             check_invariants: self.check_invariants,
             slowdown: self.slowdown,
+            wait_before_bundle: Duration::ZERO,
+            waited_before_bundle: Duration::ZERO,
         }
     }
 
     /// The BA abort flag (ORB-SLAM3's `mbAbortBA`): raising it makes a
     /// running local BA return after its current LM iteration. The driver
-    /// raises it when tracking queues a keyframe; the mapper lowers it
-    /// before each fusion and BA.
+    /// raises it when tracking asks (a monocular keyframe wanted while
+    /// mapping is busy); the mapper lowers it after triangulation.
     pub fn abort_flag(&self) -> Arc<AtomicBool> {
         Arc::clone(&self.abort)
+    }
+
+    /// The slow-machine hook (see [`Self::slowdown`]): the next keyframe's
+    /// local BA starts only after `wait`, a wait that ends early when
+    /// tracking raises the abort flag, as a slow BA would be cut short
+    /// (ORB-SLAM3's `InterruptBA`). Used once.
+    pub fn set_wait_before_bundle(&mut self, wait: Duration) {
+        self.wait_before_bundle = wait;
+    }
+
+    /// How long the last keyframe waited before its BA (the hook's wait
+    /// is not the mapper's own work).
+    pub fn waited_before_bundle(&self) -> Duration {
+        self.waited_before_bundle
+    }
+
+    /// Sleeps for the hook's wait before BA, in short slices, until it has
+    /// passed or the abort flag is raised.
+    fn wait_before_bundle_unless_aborted(&mut self) {
+        let wait = std::mem::take(&mut self.wait_before_bundle);
+        let start = Instant::now();
+        let end = start + wait;
+        while !self.abort.load(Ordering::Acquire) {
+            let now = Instant::now();
+            if now >= end {
+                break;
+            }
+            std::thread::sleep((end - now).min(Duration::from_millis(2)));
+        }
+        self.waited_before_bundle = start.elapsed();
     }
 
     /// Runs `hook` before every BA solve, with no lock held.
@@ -202,6 +248,7 @@ impl LocalMapper {
         more_keyframes_waiting: &dyn Fn() -> bool,
     ) -> Result<MappingSummary, SlamError> {
         let start = Instant::now();
+        self.waited_before_bundle = Duration::ZERO;
         let mut summary = MappingSummary::default();
         let mut lap = Instant::now();
         let mut split = || {
@@ -249,12 +296,15 @@ impl LocalMapper {
             self.checked(&map, "fusion")?;
         }
         summary.step_ms.fusion_ms = split();
-        self.abort.store(false, Ordering::Release);
+        // The abort flag stays as tracking left it since triangulation: a
+        // keyframe wanted during fusion stops the BA before it begins
+        // (ORB-SLAM3 lowers `mbAbortBA` once, after `CreateNewMapPoints`).
         if more_keyframes_waiting() {
             summary.skipped_for_queue = true;
             summary.elapsed_ms = start.elapsed().as_secs_f64() * 1e3;
             return Ok(summary);
         }
+        self.wait_before_bundle_unless_aborted();
         if self.bundle_adjustment {
             let snapshot = {
                 let map = read(map)?;

@@ -20,6 +20,7 @@
 use std::collections::VecDeque;
 
 use crate::map::{KeyFrameId, MapPointId};
+use crate::mapping::BEFORE_BUNDLE_SHARE;
 
 /// A keyframe waiting for local mapping.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -32,6 +33,19 @@ pub(super) struct LaggedJob {
     pub record: usize,
 }
 
+/// How much of local mapping's work a lagged keyframe gets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum LaggedStep {
+    /// Every step.
+    Full,
+    /// Tracking interrupted the local BA (ORB-SLAM3's `InterruptBA`) before
+    /// it could finish: points, fusion and culling done, the BA cut off.
+    BundleInterrupted,
+    /// Another keyframe was queued before fusion: fusion, BA and culling
+    /// are left to it (ORB-SLAM3's `CheckNewKeyFrames`).
+    LeftToNext,
+}
+
 /// The queue of a mapper that needs `frames_per_keyframe` frames per keyframe.
 #[derive(Debug, Clone)]
 pub(super) struct LaggedMapping {
@@ -39,6 +53,8 @@ pub(super) struct LaggedMapping {
     queue: VecDeque<(usize, LaggedJob)>,
     /// The frame at which the first job's service began.
     head_started: usize,
+    /// The frame at which tracking first interrupted the first job's BA.
+    head_interrupted: Option<usize>,
 }
 
 impl LaggedMapping {
@@ -49,6 +65,7 @@ impl LaggedMapping {
             frames_per_keyframe: frames_per_keyframe.max(1),
             queue: VecDeque::new(),
             head_started: 0,
+            head_interrupted: None,
         }
     }
 
@@ -58,63 +75,102 @@ impl LaggedMapping {
         self.queue.len()
     }
 
+    /// Frames a keyframe's work takes before its local BA.
+    fn frames_before_bundle(&self) -> usize {
+        ((self.frames_per_keyframe as f64 * BEFORE_BUNDLE_SHARE).ceil() as usize).max(1)
+    }
+
     /// Queues a keyframe made at frame `frame`.
     pub fn submit(&mut self, frame: usize, job: LaggedJob) {
         if self.queue.is_empty() {
             self.head_started = frame;
+            self.head_interrupted = None;
         }
         self.queue.push_back((frame, job));
     }
 
+    /// Tracking at frame `frame` interrupted the BA of the keyframe in
+    /// service (ORB-SLAM3's `InterruptBA`, see
+    /// [`crate::tracking::TrackOutcome::interrupt_mapping`]): it ends one
+    /// frame later, or when its work before the BA is done if that is
+    /// later.
+    pub fn interrupt(&mut self, frame: usize) {
+        if !self.queue.is_empty() && self.head_interrupted.is_none() {
+            self.head_interrupted = Some(frame);
+        }
+    }
+
     /// The jobs finished by the time frame `frame` arrives, in order,
-    /// each with whether its fusion and BA are skipped. The next job's
-    /// service begins when the previous one ends (or when it was
-    /// submitted, if later).
+    /// each with how much of the work it got. The next job's service
+    /// begins when the previous one ends (or when it was submitted, if
+    /// later).
     ///
-    /// A job costs `frames_per_keyframe` frames, unless another keyframe
-    /// was queued by the end of its first frame: local mapping then leaves
-    /// fusion and BA to that one (ORB-SLAM3's `CheckNewKeyFrames`), and
-    /// the job costs one frame. Those two steps are about 80 % of local
-    /// mapping's time (SuperPoint + ANMS at 480×360: fusion 20 and BA 65
-    /// of 107 ms per keyframe), so a backlog drains at about one keyframe
-    /// per frame, as it does on the mapping thread.
-    pub fn due(&mut self, frame: usize) -> Vec<(LaggedJob, bool)> {
+    /// A job costs `frames_per_keyframe` frames, unless:
+    /// - another keyframe was queued by the end of its first frame: local
+    ///   mapping then leaves fusion and BA to that one (ORB-SLAM3's
+    ///   `CheckNewKeyFrames`), and the job costs one frame. Those two steps
+    ///   are about 80 % of local mapping's time (SuperPoint + ANMS at
+    ///   480×360: fusion 20 and BA 65 of 107 ms per keyframe), so a backlog
+    ///   drains at about one keyframe per frame, as it does on the thread;
+    /// - tracking interrupted its BA at frame `f` ([`Self::interrupt`]): it
+    ///   ends at `f + 1`, but not before the work before the BA (40 % of
+    ///   the lag, at least a frame) is done.
+    pub fn due(&mut self, frame: usize) -> Vec<(LaggedJob, LaggedStep)> {
         let mut done = Vec::new();
         while !self.queue.is_empty() {
             let start = self.head_started;
+            let full = start + self.frames_per_keyframe;
             let next_submitted = self.queue.get(1).map(|(submitted, _)| *submitted);
-            let skipped = next_submitted.is_some_and(|submitted| submitted <= start + 1);
-            let cost = if skipped { 1 } else { self.frames_per_keyframe };
-            let finished_at = start + cost;
+            let (finished_at, step) = if next_submitted.is_some_and(|s| s <= start + 1) {
+                (start + 1, LaggedStep::LeftToNext)
+            } else {
+                match self.head_interrupted {
+                    Some(at) if (at + 1).max(start + self.frames_before_bundle()) < full => (
+                        (at + 1).max(start + self.frames_before_bundle()),
+                        LaggedStep::BundleInterrupted,
+                    ),
+                    _ => (full, LaggedStep::Full),
+                }
+            };
             if finished_at > frame {
                 break;
             }
             let Some((_, job)) = self.queue.pop_front() else {
                 break;
             };
+            self.head_interrupted = None;
             if let Some(submitted) = next_submitted {
                 self.head_started = finished_at.max(submitted);
             }
-            done.push((job, skipped));
+            done.push((job, step));
         }
         done
     }
 
     /// Every job still queued, in order (the run ends, a map is given up,
-    /// a loop is corrected); the bool as in [`Self::due`].
-    pub fn drain(&mut self) -> Vec<(LaggedJob, bool)> {
+    /// a loop is corrected): all but the last leave their fusion and BA
+    /// to the next.
+    pub fn drain(&mut self) -> Vec<(LaggedJob, LaggedStep)> {
         let n = self.queue.len();
+        self.head_interrupted = None;
         self.queue
             .drain(..)
             .enumerate()
-            .map(|(i, (_, job))| (job, i + 1 < n))
+            .map(|(i, (_, job))| {
+                let step = if i + 1 < n {
+                    LaggedStep::LeftToNext
+                } else {
+                    LaggedStep::Full
+                };
+                (job, step)
+            })
             .collect()
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{LaggedJob, LaggedMapping};
+    use super::{LaggedJob, LaggedMapping, LaggedStep};
     use crate::map::KeyFrameId;
 
     fn job(record: usize) -> LaggedJob {
@@ -125,8 +181,11 @@ mod tests {
         }
     }
 
-    fn records(done: &[(LaggedJob, bool)]) -> Vec<(usize, bool)> {
-        done.iter().map(|(j, w)| (j.record, *w)).collect()
+    /// (record, fusion and BA left to the next keyframe).
+    fn records(done: &[(LaggedJob, LaggedStep)]) -> Vec<(usize, bool)> {
+        done.iter()
+            .map(|(j, step)| (j.record, *step == LaggedStep::LeftToNext))
+            .collect()
     }
 
     #[test]
@@ -160,6 +219,44 @@ mod tests {
         assert_eq!(records(&lag.due(3)), vec![(2, true)]);
         assert!(lag.due(7).is_empty());
         assert_eq!(records(&lag.due(8)), vec![(3, false)]);
+    }
+
+    #[test]
+    fn an_interrupted_ba_ends_the_keyframe_a_frame_later_but_not_before_its_points() {
+        let steps = |done: &[(LaggedJob, LaggedStep)]| -> Vec<(usize, LaggedStep)> {
+            done.iter().map(|(j, step)| (j.record, *step)).collect()
+        };
+        // Lag 5: the work before the BA takes ceil(0.4 × 5) = 2 frames.
+        let mut lag = LaggedMapping::new(5);
+        lag.submit(0, job(0));
+        lag.interrupt(1);
+        assert!(lag.due(1).is_empty(), "the points are not made yet");
+        assert_eq!(steps(&lag.due(2)), vec![(0, LaggedStep::BundleInterrupted)]);
+        // Interrupted in its fourth frame: it ends at the next one.
+        lag.submit(2, job(2));
+        lag.interrupt(5);
+        lag.interrupt(3); // only the first interrupt counts
+        assert!(lag.due(5).is_empty());
+        assert_eq!(steps(&lag.due(6)), vec![(2, LaggedStep::BundleInterrupted)]);
+        // An interrupt in the last frame changes nothing.
+        lag.submit(10, job(10));
+        lag.interrupt(14);
+        assert_eq!(steps(&lag.due(15)), vec![(10, LaggedStep::Full)]);
+        // An interrupt with a keyframe queued behind: the next one's
+        // service begins when the interrupted one ends.
+        lag.submit(20, job(20));
+        lag.interrupt(23);
+        lag.submit(23, job(23));
+        assert_eq!(
+            steps(&lag.due(24)),
+            vec![(20, LaggedStep::BundleInterrupted)]
+        );
+        assert!(lag.due(28).is_empty(), "23's service began at 24");
+        assert_eq!(steps(&lag.due(29)), vec![(23, LaggedStep::Full)]);
+        // Nothing in service: an interrupt is ignored.
+        lag.interrupt(30);
+        lag.submit(31, job(31));
+        assert_eq!(steps(&lag.due(36)), vec![(31, LaggedStep::Full)]);
     }
 
     #[test]

@@ -1,5 +1,6 @@
 //! Local mapping on its own thread, as in ORB-SLAM3: tracking sends each
-//! new keyframe through a channel and raises the BA abort flag; the thread
+//! new keyframe through a channel (and raises the BA abort flag when a
+//! monocular keyframe is wanted while mapping is busy); the thread
 //! runs [`LocalMapper::process_keyframe`] (snapshot → compute → apply, so
 //! tracking keeps reading the map meanwhile) and sends back what it did.
 //! No `unsafe`: the map is an `Arc<RwLock<Map>>`, the queue an `mpsc`
@@ -12,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use crate::error::SlamError;
 use crate::map::{KeyFrameId, MapPointId, SharedMap};
-use crate::mapping::{LocalMapper, MappingSummary};
+use crate::mapping::{LocalMapper, MappingSummary, BEFORE_BUNDLE_SHARE};
 
 use super::worker::Worker;
 
@@ -81,15 +82,21 @@ fn run(
             break;
         }
         if mapper.slowdown > 1.0 {
-            // The slow-machine hook: wait before the work, so that its
-            // results (new points, culled keyframes) come late.
+            // The slow-machine hook: wait, so that the work's results (new
+            // points, culled keyframes) come late; the part of the wait
+            // that stands for a slow BA comes before the BA and ends when
+            // tracking interrupts it.
             let wait =
-                Duration::try_from_secs_f64(previous.as_secs_f64() * (mapper.slowdown - 1.0));
-            std::thread::sleep(wait.unwrap_or(Duration::from_secs(1)));
+                Duration::try_from_secs_f64(previous.as_secs_f64() * (mapper.slowdown - 1.0))
+                    .unwrap_or(Duration::from_secs(1));
+            std::thread::sleep(wait.mul_f64(BEFORE_BUNDLE_SHARE));
+            mapper.set_wait_before_bundle(wait.mul_f64(1.0 - BEFORE_BUNDLE_SHARE));
         }
         let started = Instant::now();
         let summary = mapper.process_keyframe(&map, job.keyframe, &job.created, &waiting);
-        previous = started.elapsed();
+        previous = started
+            .elapsed()
+            .saturating_sub(mapper.waited_before_bundle());
         let failed = summary.is_err();
         pending.fetch_sub(1, Ordering::AcqRel);
         let sent = results.send(MappingResult {
@@ -135,8 +142,17 @@ impl MappingThread {
         self.pending.load(Ordering::Acquire)
     }
 
-    /// Queues a keyframe and raises the BA abort flag, so a running local
-    /// BA yields to it (ORB-SLAM3's `InsertKeyFrame`).
+    /// Raises the BA abort flag (ORB-SLAM3's `InterruptBA`): tracking wants
+    /// a monocular keyframe while the mapper is busy, so a running or
+    /// coming local BA of the keyframe in service stops.
+    pub fn interrupt_bundle_adjustment(&self) {
+        self.abort.store(true, Ordering::Release);
+    }
+
+    /// Queues a keyframe. Unlike ORB-SLAM3's `InsertKeyFrame`, it leaves a
+    /// running local BA alone: tracking interrupts it where it needs to
+    /// ([`Self::interrupt_bundle_adjustment`]); the mapper still skips the
+    /// BA of a keyframe with another queued behind it before its BA begins.
     /// A thread that has stopped is an error with the reason it stopped
     /// (its panic's message), or saying that an earlier keyframe failed.
     pub fn submit(
@@ -145,7 +161,6 @@ impl MappingThread {
         created: Vec<MapPointId>,
     ) -> Result<(), SlamError> {
         self.pending.fetch_add(1, Ordering::AcqRel);
-        self.abort.store(true, Ordering::Release);
         let sent = match self.jobs.as_ref() {
             Some(jobs) => jobs.send(MappingJob { keyframe, created }).is_ok(),
             None => false,

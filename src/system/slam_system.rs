@@ -22,7 +22,7 @@ use crate::tracking::{
 
 use super::atlas::{Atlas, MapIndex};
 use super::global_ba_thread::{GlobalBaHook, GlobalBaThread};
-use super::lagged_mapping::{LaggedJob, LaggedMapping};
+use super::lagged_mapping::{LaggedJob, LaggedMapping, LaggedStep};
 use super::local_mapping_thread::{MappingJob, MappingResult, MappingThread, StoppedMapping};
 use super::loop_closing_stage::{LoopClosingStage, LoopLog};
 use super::loop_closing_thread::LoopClosingThread;
@@ -251,16 +251,45 @@ impl SlamSystem {
         self.map_lagged(queued)
     }
 
+    /// Tracking at frame `index` wanted a keyframe that busy local mapping
+    /// could not take: the mapper's local BA yields (ORB-SLAM3's
+    /// `InterruptBA`).
+    fn interrupt_mapping(&mut self, index: usize) {
+        match &self.mapping {
+            Mapping::Thread { thread, .. } => thread.interrupt_bundle_adjustment(),
+            Mapping::Inline(_) => {
+                if let Some(lag) = self.mapping_lag.as_mut() {
+                    lag.interrupt(index);
+                }
+            }
+            Mapping::Paused { .. } => {}
+        }
+    }
+
     /// Runs inline local mapping on lagged keyframes and files each
     /// summary under the frame that made the keyframe.
-    fn map_lagged(&mut self, jobs: Vec<(LaggedJob, bool)>) -> Result<(), SlamError> {
+    fn map_lagged(&mut self, jobs: Vec<(LaggedJob, LaggedStep)>) -> Result<(), SlamError> {
         let Mapping::Inline(mapper) = &mut self.mapping else {
             return Ok(());
         };
         let map = self.atlas.active().map.clone();
-        for (job, more_waiting) in jobs {
+        let abort = mapper.abort_flag();
+        for (job, step) in jobs {
+            // The mapper asks whether tracking queued another keyframe
+            // after its triangulation and after its fusion; an interrupted
+            // BA is replayed by raising the abort flag at those points
+            // (after the mapper lowered it), as tracking would have.
+            let tracking_signals = || match step {
+                LaggedStep::Full => false,
+                LaggedStep::LeftToNext => true,
+                LaggedStep::BundleInterrupted => {
+                    abort.store(true, std::sync::atomic::Ordering::Release);
+                    false
+                }
+            };
             let summary =
-                mapper.process_keyframe(&map, job.keyframe, &job.created, &|| more_waiting)?;
+                mapper.process_keyframe(&map, job.keyframe, &job.created, &tracking_signals)?;
+            abort.store(false, std::sync::atomic::Ordering::Release);
             self.loop_inbox.push(job.keyframe);
             if let Some(record) = self.records.get_mut(job.record) {
                 record.timings.mapping_ms = summary.elapsed_ms;
@@ -507,6 +536,9 @@ impl SlamSystem {
         let start = Instant::now();
         let outcome = self.tracker.track(frame, &map, queue)?;
         let tracking_ms = start.elapsed().as_secs_f64() * 1e3;
+        if outcome.interrupt_mapping {
+            self.interrupt_mapping(index);
+        }
         let loop_check_running = loop_check_at_start || self.loop_check_running();
         let mut mapping: Option<MappingSummary> = None;
         if let Some((kf, created)) = &outcome.new_keyframe {

@@ -90,10 +90,22 @@ pub(crate) struct KeyFrameContext {
 /// wait (ORB-SLAM3, stereo: `KeyframesInQueue() < 3`).
 const MAX_MAPPING_QUEUE: usize = 3;
 
-/// ORB-SLAM3's `NeedNewKeyFrame` for stereo, RGB-D and monocular (without
-/// its BA interruption), with two departures: a stereo or RGB-D keyframe
-/// wanted because tracking is weak (condition 1c) is never refused for
-/// local mapping's queue; and ORB-SLAM3's close-point condition
+/// What [`needs_keyframe`] decided for a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct KeyFrameDecision {
+    /// The frame becomes a keyframe.
+    pub insert: bool,
+    /// Local mapping's BA should yield now (ORB-SLAM3's `InterruptBA`):
+    /// a monocular keyframe was wanted while mapping was busy, and a
+    /// monocular camera's new points come only from mapping.
+    pub interrupt_mapping: bool,
+}
+
+/// ORB-SLAM3's `NeedNewKeyFrame` for stereo, RGB-D and monocular, with
+/// three departures: a keyframe wanted because tracking is weak
+/// (condition 1c) is never refused for local mapping's queue; a monocular
+/// camera has a condition 1c too, and interrupts a busy mapper's BA
+/// whenever it wants a keyframe (below); and ORB-SLAM3's close-point condition
 /// (`bNeedToInsertClose`: fewer than 100 tracked close points, more than
 /// 70 untracked) is also applied to the next frame as the motion model
 /// predicts it, counting this frame's tracked close points that stay in
@@ -124,16 +136,33 @@ const MAX_MAPPING_QUEUE: usize = 3;
 /// tracked 197 of 232 frames in 8 maps with ORB-SLAM3's rule, 232 in one
 /// map with this one and the last-frame fallback of
 /// [`super::motion::track_last_frame`]; ORB 188 → 227.
+///
+/// A monocular camera gets its new points only from local mapping's
+/// triangulation, and ORB-SLAM3 gives it a keyframe only when mapping is
+/// idle (or after `mMaxFrames`, interrupting the BA). With mapping five
+/// times slower than the camera (`--mapping-lag 5`, the 640×480 demo lap)
+/// that was one keyframe per whole mapping step, and SuperPoint + ANMS
+/// tracked 131 of 232 frames in 21 maps, ORB 143. spslam counts every
+/// monocular keypoint as close (it has no depth), so ORB-SLAM3's
+/// close-point condition reads "fewer than 100 tracked points" and makes a
+/// weak monocular frame a keyframe through condition 1c, and a monocular
+/// keyframe wanted while mapping is busy interrupts the BA
+/// ([`KeyFrameDecision::interrupt_mapping`]), so the mapper's triangulation
+/// comes sooner: 227 of 232 for both extractors, the frames the run
+/// without the lag tracks too. Stereo and RGB-D keyframes bring their own
+/// close points and never interrupt: the BA that aborted for every queued
+/// keyframe drifted an RGB-D lap 16× more (EVALUATION.md, "Local mapping
+/// that lags").
 pub(crate) fn needs_keyframe(
     frame: &Frame,
     map: &Map,
     rig: &CameraRig,
     ctx: &KeyFrameContext,
-) -> bool {
+) -> KeyFrameDecision {
     let n_keyframes = map.keyframe_count();
     if let Some(reloc) = ctx.last_relocalisation_frame {
         if frame.index < reloc + ctx.max_frames && n_keyframes > ctx.max_frames {
-            return false;
+            return KeyFrameDecision::default();
         }
     }
     // ORB-SLAM3 counts the reference's points seen by 3 keyframes (2 in a
@@ -156,7 +185,7 @@ pub(crate) fn needs_keyframe(
     });
     let (mut tracked_close, mut untracked_close) = (0usize, 0usize);
     for i in 0..frame.len() {
-        if frame.depth(i).is_some_and(|d| d < rig.close_depth) {
+        if counts_as_close(frame, i, rig) {
             if frame.map_points[i].is_some() {
                 tracked_close += 1;
             } else {
@@ -186,9 +215,8 @@ pub(crate) fn needs_keyframe(
     };
     let inliers = ctx.inliers as f64;
     let c1a = frame.index >= ctx.last_keyframe_frame + ctx.max_frames;
-    let mapping_idle = ctx.mapping_queue == 0;
-    let c1b = mapping_idle;
-    let c1c = !mono && (inliers < reference_matches as f64 * 0.25 || need_close);
+    let c1b = ctx.mapping_queue == 0;
+    let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
     let c2 = (inliers < reference_matches as f64 * ref_ratio || need_close) && ctx.inliers > 15;
     tracing::trace!(
         frame = frame.index,
@@ -203,9 +231,24 @@ pub(crate) fn needs_keyframe(
         c2,
         "keyframe decision"
     );
-    // Condition 1c (tracking is weak) is never refused for the queue.
-    let accepted = mapping_idle || (!mono && (c1c || ctx.mapping_queue < MAX_MAPPING_QUEUE));
-    (c1a || c1b || c1c) && c2 && accepted
+    if !c2 {
+        return KeyFrameDecision::default();
+    }
+    // Condition 1b (ORB-SLAM3's `mMinFrames` is 0): an idle mapper takes
+    // every keyframe condition 2 asks for. A busy one takes a keyframe on
+    // condition 1c (tracking is weak) always, and a stereo or RGB-D one on
+    // condition 1a while fewer than three wait.
+    KeyFrameDecision {
+        insert: c1b || c1c || (!mono && c1a && ctx.mapping_queue < MAX_MAPPING_QUEUE),
+        interrupt_mapping: mono && !c1b,
+    }
+}
+
+/// Whether keypoint `i` counts in ORB-SLAM3's close-point condition: a
+/// stereo or RGB-D keypoint with a depth under `ThDepth`, and (spslam's
+/// departure, see [`needs_keyframe`]) every monocular keypoint.
+fn counts_as_close(frame: &Frame, i: usize, rig: &CameraRig) -> bool {
+    rig.sensor == Sensor::Monocular || frame.depth(i).is_some_and(|d| d < rig.close_depth)
 }
 
 /// ORB-SLAM3's `bNeedToInsertClose`: a stereo or RGB-D keyframe is needed
@@ -219,7 +262,7 @@ const MIN_UNTRACKED_CLOSE: usize = 70;
 fn tracked_close_in_next_frame(frame: &Frame, map: &Map, rig: &CameraRig, velocity: &Se3) -> usize {
     let next = velocity.compose(&frame.pose_cw);
     (0..frame.len())
-        .filter(|&i| frame.depth(i).is_some_and(|d| d < rig.close_depth))
+        .filter(|&i| counts_as_close(frame, i, rig))
         .filter_map(|i| frame.map_points[i].and_then(|p| map.resolve_point(p)))
         .filter_map(|id| map.map_point(id).ok())
         .filter(|p| {

@@ -135,7 +135,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
             velocity: None,
         };
         assert_eq!(
-            needs_keyframe(&frame, &map, &world.rig, &ctx),
+            needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
             row.expected,
             "{}",
             row.name
@@ -154,7 +154,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         velocity: None,
     };
     assert!(
-        needs_keyframe(&frame, &map, &world.rig, &ctx),
+        needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
         "small map exempt"
     );
     let ctx = KeyFrameContext {
@@ -163,7 +163,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         ..ctx
     };
     assert!(
-        !needs_keyframe(&frame, &map, &world.rig, &ctx),
+        !needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
         "recently relocalised"
     );
 }
@@ -212,18 +212,18 @@ fn tracked_points_about_to_leave_the_view_ask_for_a_keyframe() {
         velocity,
     };
     assert!(
-        !needs_keyframe(&frame, &map, &world.rig, &ctx(None)),
+        !needs_keyframe(&frame, &map, &world.rig, &ctx(None)).insert,
         "no velocity: ORB-SLAM3's rule"
     );
     let still = crate::optim::Se3::identity();
     assert!(
-        !needs_keyframe(&frame, &map, &world.rig, &ctx(Some(still))),
+        !needs_keyframe(&frame, &map, &world.rig, &ctx(Some(still))).insert,
         "a still camera keeps its points in view"
     );
     // Turning right by 50° per frame: most points leave the view.
     let turning = pose_at(Vector3::zeros(), 50f64.to_radians());
     assert!(
-        needs_keyframe(&frame, &map, &world.rig, &ctx(Some(turning))),
+        needs_keyframe(&frame, &map, &world.rig, &ctx(Some(turning))).insert,
         "the points leave the view in the next frame"
     );
 }

@@ -8,7 +8,9 @@ use crate::map::{KeyFrameId, Map, MapPointId, SharedMap};
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
-use super::keyframe::{initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext};
+use super::keyframe::{
+    initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext, KeyFrameDecision,
+};
 use super::local_map::track_local_map;
 use super::mono_init::MonoInitialiser;
 use super::motion::{track_last_frame, track_reference_keyframe, track_with_motion_model};
@@ -61,6 +63,10 @@ pub struct TrackOutcome {
     /// A monocular initialisation also made a keyframe of an earlier frame
     /// (its index): that frame now has a pose.
     pub earlier_keyframe: Option<(usize, KeyFrameId)>,
+    /// A monocular keyframe was wanted while local mapping was busy: the
+    /// caller interrupts mapping's local BA (ORB-SLAM3's `InterruptBA`), so
+    /// its triangulation is done sooner (see the keyframe rule).
+    pub interrupt_mapping: bool,
 }
 
 /// Tracks frames against a map.
@@ -204,7 +210,8 @@ impl Tracker {
         let Some(mut frame) = frame else {
             return Ok(outcome);
         };
-        if wants_keyframe && !self.localisation_only {
+        outcome.interrupt_mapping = wants_keyframe.interrupt_mapping && !self.localisation_only;
+        if wants_keyframe.insert && !self.localisation_only {
             let mut map = self.timed(|| map.write())?;
             let (kf, created) = insert_keyframe(&mut frame, &mut map, &self.rig)?;
             self.reference = Some(kf);
@@ -239,7 +246,7 @@ impl Tracker {
         mut frame: Frame,
         map: &Map,
         mapping_queue: usize,
-    ) -> Result<(Option<Frame>, TrackOutcome, bool), SlamError> {
+    ) -> Result<(Option<Frame>, TrackOutcome, KeyFrameDecision), SlamError> {
         // The last frame follows its reference keyframe (moved by BA, or culled).
         if let (Some(last), Some((kf, rel))) = (self.last_frame.as_mut(), self.last_relative) {
             if let Ok(kf_pose) = map.pose_cw_of(kf) {
@@ -324,8 +331,9 @@ impl Tracker {
                 new_keyframe: None,
                 relative_pose: None,
                 earlier_keyframe: None,
+                interrupt_mapping: false,
             };
-            return Ok((None, outcome, false));
+            return Ok((None, outcome, KeyFrameDecision::default()));
         }
         self.lost_since = None;
         if let Some(reference) = frame.reference_keyframe {
@@ -342,18 +350,20 @@ impl Tracker {
                 .as_ref()
                 .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()))
         };
-        let wants_keyframe = self.reference.is_some_and(|reference| {
-            let ctx = KeyFrameContext {
-                reference,
-                last_keyframe_frame: self.last_keyframe_frame,
-                last_relocalisation_frame: self.last_relocalisation_frame,
-                inliers,
-                max_frames: self.max_frames,
-                mapping_queue,
-                velocity: self.velocity,
-            };
-            needs_keyframe(&frame, map, &self.rig, &ctx)
-        });
+        let wants_keyframe = self
+            .reference
+            .map_or(KeyFrameDecision::default(), |reference| {
+                let ctx = KeyFrameContext {
+                    reference,
+                    last_keyframe_frame: self.last_keyframe_frame,
+                    last_relocalisation_frame: self.last_relocalisation_frame,
+                    inliers,
+                    max_frames: self.max_frames,
+                    mapping_queue,
+                    velocity: self.velocity,
+                };
+                needs_keyframe(&frame, map, &self.rig, &ctx)
+            });
         let relative_pose = self.relative_to_reference(&frame, map)?;
         let outcome = TrackOutcome {
             state: self.state,
@@ -362,6 +372,7 @@ impl Tracker {
             new_keyframe: None,
             relative_pose,
             earlier_keyframe: None,
+            interrupt_mapping: false,
         };
         Ok((Some(frame), outcome, wants_keyframe))
     }
@@ -398,6 +409,7 @@ impl Tracker {
                 new_keyframe: None,
                 relative_pose: None,
                 earlier_keyframe: None,
+                interrupt_mapping: false,
             });
         };
         self.state = TrackingState::Ok;
@@ -414,6 +426,7 @@ impl Tracker {
             new_keyframe: Some((kf, created)),
             relative_pose,
             earlier_keyframe,
+            interrupt_mapping: false,
         })
     }
 
