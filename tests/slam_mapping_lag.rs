@@ -129,15 +129,8 @@ fn orb_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64)
         .iter()
         .find(|r| r.state == TrackingState::Ok)
         .map_or(0, |r| r.index);
-    let lost: Vec<usize> = run
-        .records
-        .iter()
-        .filter(|r| r.index >= first && r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect();
-    let keep: Vec<usize> = (first..run.truth.len()).collect();
-    let (truth, estimate) = run.trajectories();
-    let (truth, estimate) = (truth.select(&keep), estimate.select(&keep));
+    let lost = run.lost_from(first);
+    let (truth, estimate) = run.trajectories_from(first);
     let alignment = if sensor == Sensor::Monocular {
         Alignment::Sim3
     } else {

@@ -6,22 +6,15 @@
 
 mod common;
 
-use common::sensor_runs::{orb_system, run_sensor, DepthNoise, SensorRun};
+use common::sensor_runs::{orb_system, run_sensor, DepthNoise};
 use common::synthetic_slam::small_sequence;
 use spslam::camera::Sensor;
 use spslam::dataset::synthetic::SceneName;
-use spslam::eval::{ate, Alignment, Trajectory};
+use spslam::eval::{ate, Alignment};
 use spslam::tracking::{TrackingMethod, TrackingState};
 
 /// Frames of the block loop (10 m/s at 10 fps).
 const FRAMES: usize = 260;
-
-/// The frames from `first` on, as trajectories.
-fn from_frame(run: &SensorRun, first: usize) -> (Trajectory, Trajectory) {
-    let keep: Vec<usize> = (first..run.truth.len()).collect();
-    let (truth, estimate) = run.trajectories();
-    (truth.select(&keep), estimate.select(&keep))
-}
 
 #[test]
 fn monocular_initialises_within_30_frames_and_tracks_within_1_percent_of_the_path() {
@@ -44,13 +37,8 @@ fn monocular_initialises_within_30_frames_and_tracks_within_1_percent_of_the_pat
         panic!("monocular initialisation never happened");
     };
     let last_init = init.last().copied().unwrap_or(first);
-    let lost: Vec<usize> = run
-        .records
-        .iter()
-        .filter(|r| r.index >= first && r.state != TrackingState::Ok)
-        .map(|r| r.index)
-        .collect();
-    let (truth, estimate) = from_frame(&run, first);
+    let lost = run.lost_from(first);
+    let (truth, estimate) = run.trajectories_from(first);
     let path: f64 = truth
         .poses
         .windows(2)

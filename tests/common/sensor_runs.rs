@@ -10,7 +10,7 @@ use spslam::eval::Trajectory;
 use spslam::features::{GrayImage, OrbConfig, OrbExtractor};
 use spslam::settings::SlamSettings;
 use spslam::system::{FrameRecord, SlamSystem};
-use spslam::tracking::{Frontend, SensorImages};
+use spslam::tracking::{Frontend, SensorImages, TrackingState};
 
 use super::rng::Rng;
 
@@ -83,6 +83,22 @@ impl SensorRun {
             Trajectory::new(self.timestamps.clone(), self.truth.clone()),
             Trajectory::new(self.timestamps.clone(), self.estimate.clone()),
         )
+    }
+
+    /// Frames from `first` on that were not tracked.
+    pub fn lost_from(&self, first: usize) -> Vec<usize> {
+        self.records
+            .iter()
+            .filter(|r| r.index >= first && r.state != TrackingState::Ok)
+            .map(|r| r.index)
+            .collect()
+    }
+
+    /// Ground truth and estimate from frame `first` on.
+    pub fn trajectories_from(&self, first: usize) -> (Trajectory, Trajectory) {
+        let keep: Vec<usize> = (first..self.truth.len()).collect();
+        let (truth, estimate) = self.trajectories();
+        (truth.select(&keep), estimate.select(&keep))
     }
 
     /// Path length of the ground truth, metres.
