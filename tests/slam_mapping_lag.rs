@@ -109,9 +109,10 @@ fn superpoint_tracks_the_whole_lap_when_mapping_lags_five_frames() {
 
 /// Runs the lap as `sensor` with ORB, mapping inline with `lag` frames per
 /// keyframe (0: no lag); returns the untracked frames, the maps left
-/// unmerged, the keyframes and the ATE as a percentage of the path (SE3,
-/// Sim3 for monocular frames after the initialisation).
-fn orb_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64) {
+/// unmerged, the keyframes, the ATE as a percentage of the path (SE3,
+/// Sim3 for monocular frames after the initialisation) and the local BAs
+/// aborted by tracking's interrupts.
+fn orb_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64, usize) {
     let sequence = small_lap(SceneName::Loop);
     let mut slam = orb_system(&sequence, sensor);
     if lag > 0 {
@@ -144,17 +145,23 @@ fn orb_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64)
         result.stats.rmse,
         run.path_length()
     );
-    (lost, maps, summary.keyframes_inserted, percent)
+    let interrupted = run
+        .records
+        .iter()
+        .filter(|r| r.mapping.as_ref().is_some_and(|m| m.bundle.aborted))
+        .count();
+    (lost, maps, summary.keyframes_inserted, percent, interrupted)
 }
 
 #[test]
 fn rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames_as_well_as_without_the_lag() {
-    let (lost, maps, _, quiet) = orb_sensor_lap(Sensor::Rgbd, 0);
+    let (lost, maps, _, quiet, _) = orb_sensor_lap(Sensor::Rgbd, 0);
     assert!(
         lost.is_empty() && maps == 1,
         "without the lag: lost {lost:?}, {maps} maps"
     );
-    let (lost, maps, _, lagged) = orb_sensor_lap(Sensor::Rgbd, 5);
+    let (lost, maps, _, lagged, interrupted) = orb_sensor_lap(Sensor::Rgbd, 5);
+    assert_eq!(interrupted, 0, "an RGB-D run interrupted local BAs");
     assert!(lost.is_empty(), "frames not tracked: {lost:?}");
     assert_eq!(maps, 1, "maps left unmerged");
     // Measured (Intel Xeon VNNI; ORB's outputs do not depend on the CPU
@@ -176,12 +183,15 @@ fn rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames_as_well_as_without_th
 /// is busy interrupts its BA: `tracking::keyframe::needs_keyframe`) took
 /// this lap from 72 lost frames in 12 maps to 15 in 4 (three of its four
 /// corners, 5 frames each); the run without the lag tracks every frame
-/// (0.552 m Sim3, 0.24 % of the path). The bound guards the gain.
+/// (0.552 m Sim3, 0.24 % of the path). The bounds guard the gain with a
+/// corner's margin.
 #[test]
 fn monocular_keeps_the_lap_but_its_corners_when_mapping_lags_five_frames() {
-    let (lost, maps, keyframes, _) = orb_sensor_lap(Sensor::Monocular, 5);
-    assert!(lost.len() <= 15, "{} frames lost: {lost:?}", lost.len());
-    assert!(maps <= 4, "{maps} maps");
-    // Measured: 118 keyframes (one per two frames, as a busy mapper allows).
+    let (lost, maps, keyframes, _, interrupted) = orb_sensor_lap(Sensor::Monocular, 5);
+    assert!(lost.len() <= 20, "{} frames lost: {lost:?}", lost.len());
+    assert!(maps <= 5, "{maps} maps");
+    // Measured: 118 keyframes (one per two frames, as a busy mapper allows,
+    // against 51 before), and the replayed interrupts cut BAs short.
     assert!(keyframes >= 100, "{keyframes} keyframes");
+    assert!(interrupted > 0, "no BA was interrupted");
 }

@@ -32,8 +32,8 @@ pub struct BundleSummary {
     pub points: usize,
     /// Observations erased as outliers.
     pub outliers_erased: usize,
-    /// Whether tracking aborted it early (a monocular keyframe wanted while
-    /// mapping was busy).
+    /// Whether it was aborted early (monocular tracking wanted a keyframe
+    /// while mapping was busy, or the mapping thread was stopped).
     pub aborted: bool,
 }
 

@@ -104,9 +104,11 @@ pub struct LocalMapper {
     pub check_invariants: bool,
     /// A test hook that reproduces a slow or busy machine: on the mapping
     /// thread, each keyframe waits (slowdown − 1) × the previous
-    /// keyframe's processing time before its own processing starts, so
-    /// local mapping keeps up `slowdown` times more slowly. 1 (the
-    /// default) is off; inline mapping ignores it.
+    /// keyframe's processing time, 40 % of it before its processing starts
+    /// and 60 % before its local BA ([`BEFORE_BUNDLE_SHARE`]; tracking's
+    /// interrupt cuts the second part short), so local mapping keeps up
+    /// `slowdown` times more slowly. 1 (the default) is off; inline
+    /// mapping ignores it.
     pub slowdown: f64,
     /// The slow-machine hook's wait before the next local BA (see
     /// [`Self::set_wait_before_bundle`]).
@@ -187,7 +189,8 @@ impl LocalMapper {
     /// The BA abort flag (ORB-SLAM3's `mbAbortBA`): raising it makes a
     /// running local BA return after its current LM iteration. The driver
     /// raises it when tracking asks (a monocular keyframe wanted while
-    /// mapping is busy); the mapper lowers it after triangulation.
+    /// mapping is busy) and when it stops the mapping thread; the mapper
+    /// lowers it after triangulation.
     pub fn abort_flag(&self) -> Arc<AtomicBool> {
         Arc::clone(&self.abort)
     }
@@ -195,7 +198,8 @@ impl LocalMapper {
     /// The slow-machine hook (see [`Self::slowdown`]): the next keyframe's
     /// local BA starts only after `wait`, a wait that ends early when
     /// tracking raises the abort flag, as a slow BA would be cut short
-    /// (ORB-SLAM3's `InterruptBA`). Used once.
+    /// (ORB-SLAM3's `InterruptBA`). It applies to the next keyframe only,
+    /// and is dropped if that keyframe skips its BA.
     pub fn set_wait_before_bundle(&mut self, wait: Duration) {
         self.wait_before_bundle = wait;
     }
@@ -208,8 +212,7 @@ impl LocalMapper {
 
     /// Sleeps for the hook's wait before BA, in short slices, until it has
     /// passed or the abort flag is raised.
-    fn wait_before_bundle_unless_aborted(&mut self) {
-        let wait = std::mem::take(&mut self.wait_before_bundle);
+    fn wait_before_bundle_unless_aborted(&mut self, wait: Duration) {
         let start = Instant::now();
         let end = start + wait;
         while !self.abort.load(Ordering::Acquire) {
@@ -249,6 +252,9 @@ impl LocalMapper {
     ) -> Result<MappingSummary, SlamError> {
         let start = Instant::now();
         self.waited_before_bundle = Duration::ZERO;
+        // The slow hook's wait belongs to this keyframe's BA only: a
+        // keyframe that skips its BA drops it.
+        let wait_before_bundle = std::mem::take(&mut self.wait_before_bundle);
         let mut summary = MappingSummary::default();
         let mut lap = Instant::now();
         let mut split = || {
@@ -304,7 +310,7 @@ impl LocalMapper {
             summary.elapsed_ms = start.elapsed().as_secs_f64() * 1e3;
             return Ok(summary);
         }
-        self.wait_before_bundle_unless_aborted();
+        self.wait_before_bundle_unless_aborted(wait_before_bundle);
         if self.bundle_adjustment {
             let snapshot = {
                 let map = read(map)?;

@@ -93,7 +93,9 @@ impl LaggedMapping {
     /// service (ORB-SLAM3's `InterruptBA`, see
     /// [`crate::tracking::TrackOutcome::interrupt_mapping`]): it ends one
     /// frame later, or when its work before the BA is done if that is
-    /// later.
+    /// later. An interrupt during the work before the BA counts too (the
+    /// thread's flag raised then is lowered after triangulation; monocular
+    /// tracking, which alone interrupts, asks again on the next frame).
     pub fn interrupt(&mut self, frame: usize) {
         if !self.queue.is_empty() && self.head_interrupted.is_none() {
             self.head_interrupted = Some(frame);
@@ -124,11 +126,11 @@ impl LaggedMapping {
             let (finished_at, step) = if next_submitted.is_some_and(|s| s <= start + 1) {
                 (start + 1, LaggedStep::LeftToNext)
             } else {
-                match self.head_interrupted {
-                    Some(at) if (at + 1).max(start + self.frames_before_bundle()) < full => (
-                        (at + 1).max(start + self.frames_before_bundle()),
-                        LaggedStep::BundleInterrupted,
-                    ),
+                let interrupted_end = self
+                    .head_interrupted
+                    .map(|at| (at + 1).max(start + self.frames_before_bundle()));
+                match interrupted_end {
+                    Some(end) if end < full => (end, LaggedStep::BundleInterrupted),
                     _ => (full, LaggedStep::Full),
                 }
             };

@@ -251,8 +251,8 @@ impl SlamSystem {
         self.map_lagged(queued)
     }
 
-    /// Tracking at frame `index` wanted a keyframe that busy local mapping
-    /// could not take: the mapper's local BA yields (ORB-SLAM3's
+    /// Monocular tracking at frame `index` wanted a keyframe while local
+    /// mapping was busy: the mapper's local BA yields (ORB-SLAM3's
     /// `InterruptBA`).
     fn interrupt_mapping(&mut self, index: usize) {
         match &self.mapping {

@@ -139,17 +139,19 @@ pub(crate) struct KeyFrameDecision {
 ///
 /// A monocular camera gets its new points only from local mapping's
 /// triangulation, and ORB-SLAM3 gives it a keyframe only when mapping is
-/// idle (or after `mMaxFrames`, interrupting the BA). With mapping five
-/// times slower than the camera (`--mapping-lag 5`, the 640×480 demo lap)
-/// that was one keyframe per whole mapping step, and SuperPoint + ANMS
-/// tracked 131 of 232 frames in 21 maps, ORB 143. spslam counts every
-/// monocular keypoint as close (it has no depth), so ORB-SLAM3's
-/// close-point condition reads "fewer than 100 tracked points" and makes a
-/// weak monocular frame a keyframe through condition 1c, and a monocular
-/// keyframe wanted while mapping is busy interrupts the BA
+/// idle (after `mMaxFrames` it interrupts the BA, and still inserts
+/// nothing). With mapping five times slower than the camera
+/// (`--mapping-lag 5`, the 640×480 demo lap) that was one keyframe per
+/// whole mapping step, and SuperPoint + ANMS tracked 131 of 232 frames,
+/// ORB 143. While mapping is busy, spslam counts every monocular keypoint
+/// as close (it has no depth), so ORB-SLAM3's close-point condition reads
+/// "fewer than 100 tracked points" and makes a weak monocular frame a
+/// keyframe through condition 1c; and a monocular keyframe wanted while
+/// mapping is busy interrupts the BA
 /// ([`KeyFrameDecision::interrupt_mapping`]), so the mapper's triangulation
 /// comes sooner: 227 of 232 for both extractors, the frames the run
-/// without the lag tracks too. Stereo and RGB-D keyframes bring their own
+/// without the lag tracks too. An idle mapper keeps ORB-SLAM3's monocular
+/// rule exactly. Stereo and RGB-D keyframes bring their own
 /// close points and never interrupt: the BA that aborted for every queued
 /// keyframe drifted an RGB-D lap 16× more (EVALUATION.md, "Local mapping
 /// that lags").
@@ -183,8 +185,13 @@ pub(crate) fn needs_keyframe(
             })
             .count()
     });
+    let mono = rig.sensor == Sensor::Monocular;
+    // A monocular camera's close-point condition (spslam's departure, see
+    // above) applies only while mapping is busy: an idle mapper keeps
+    // ORB-SLAM3's monocular rule exactly.
+    let close_condition_applies = !mono || ctx.mapping_queue > 0;
     let (mut tracked_close, mut untracked_close) = (0usize, 0usize);
-    for i in 0..frame.len() {
+    for i in (0..frame.len()).filter(|_| close_condition_applies) {
         if counts_as_close(frame, i, rig) {
             if frame.map_points[i].is_some() {
                 tracked_close += 1;
@@ -204,8 +211,7 @@ pub(crate) fn needs_keyframe(
     let need_close =
         (tracked_close < MIN_TRACKED_CLOSE || leaving) && untracked_close > MIN_UNTRACKED_CLOSE;
     // ORB-SLAM3: monocular keyframes come when fewer than 90 % of the
-    // reference's points are tracked, and only while mapping is idle.
-    let mono = rig.sensor == Sensor::Monocular;
+    // reference's points are tracked.
     let ref_ratio = if mono {
         0.9
     } else if n_keyframes < 2 {
@@ -246,13 +252,14 @@ pub(crate) fn needs_keyframe(
 
 /// Whether keypoint `i` counts in ORB-SLAM3's close-point condition: a
 /// stereo or RGB-D keypoint with a depth under `ThDepth`, and (spslam's
-/// departure, see [`needs_keyframe`]) every monocular keypoint.
+/// departure, applied while mapping is busy, see [`needs_keyframe`])
+/// every monocular keypoint.
 fn counts_as_close(frame: &Frame, i: usize, rig: &CameraRig) -> bool {
     rig.sensor == Sensor::Monocular || frame.depth(i).is_some_and(|d| d < rig.close_depth)
 }
 
-/// ORB-SLAM3's `bNeedToInsertClose`: a stereo or RGB-D keyframe is needed
-/// when fewer than this many close points are tracked…
+/// ORB-SLAM3's `bNeedToInsertClose`: a keyframe is needed when fewer than
+/// this many close points are tracked…
 const MIN_TRACKED_CLOSE: usize = 100;
 /// …and more than this many close keypoints could become new points.
 const MIN_UNTRACKED_CLOSE: usize = 70;

@@ -1,5 +1,6 @@
 //! Tracking's decisions on frames built from a point world with known
-//! answers: ORB-SLAM3's stereo keyframe rule as a truth table, and
+//! answers: ORB-SLAM3's stereo keyframe rule as a truth table, the
+//! monocular rule while mapping is busy, and
 //! relocalisation from a known pose.
 
 use nalgebra::Vector3;
@@ -166,6 +167,110 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         !needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
         "recently relocalised"
     );
+}
+
+#[test]
+fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
+    let world = PointWorld::new(3, 900, (14.0, 5.0, 4.0, 40.0));
+    let (map, kfs) = world.keyframe_chain(3);
+    let reference = kfs[2].0;
+    let mut mono = world.rig;
+    mono.sensor = crate::camera::Sensor::Monocular;
+    // A monocular reference counts its points seen twice.
+    let reference_matches = ok(map.keyframe(reference))
+        .observed_points()
+        .filter(|(_, p)| map.map_point(*p).is_ok_and(|p| p.observation_count() >= 2))
+        .count();
+    assert!(reference_matches > 300, "{reference_matches}");
+    let r = reference_matches as f64;
+    let (mut frame, _) = world.frame(30, &pose_at(Vector3::new(0.0, 0.0, 1.0), 0.0), false);
+    assert!(frame.len() > 300, "{} keypoints", frame.len());
+    let set_tracked = |frame: &mut super::Frame, tracked: usize| {
+        frame.map_points.iter_mut().for_each(|p| *p = None);
+        for p in frame.map_points.iter_mut().take(tracked) {
+            *p = Some(crate::map::MapPointId(0));
+        }
+    };
+    // (name, inliers / reference, tracked points, queue, insert, interrupt)
+    let rows = [
+        (
+            "idle, under 90 % of the reference: ORB-SLAM3's rule",
+            0.5,
+            200,
+            0,
+            true,
+            false,
+        ),
+        (
+            "idle, 50 points tracked but 95 % of the reference: ORB-SLAM3's rule",
+            0.95,
+            50,
+            0,
+            false,
+            false,
+        ),
+        (
+            "busy, under 90 %: refused, the BA interrupted",
+            0.5,
+            200,
+            1,
+            false,
+            true,
+        ),
+        (
+            "busy, fewer than 100 points tracked: condition 1c inserts, the BA interrupted",
+            0.5,
+            50,
+            1,
+            true,
+            true,
+        ),
+        (
+            "busy, 95 % of the reference and 200 points tracked: nothing",
+            0.95,
+            200,
+            1,
+            false,
+            false,
+        ),
+    ];
+    for (name, inliers, tracked, queue, insert, interrupt) in rows {
+        set_tracked(&mut frame, tracked);
+        let ctx = KeyFrameContext {
+            reference,
+            last_keyframe_frame: frame.index - 1,
+            last_relocalisation_frame: None,
+            inliers: (inliers * r).round() as usize,
+            max_frames: 10,
+            mapping_queue: queue,
+            velocity: None,
+        };
+        let decision = needs_keyframe(&frame, &map, &mono, &ctx);
+        assert_eq!(
+            (decision.insert, decision.interrupt_mapping),
+            (insert, interrupt),
+            "{name}"
+        );
+    }
+    // Stereo keyframes bring their own points and never interrupt the BA:
+    // a busy mapper, weak tracking, a full queue.
+    let (stereo_frame, _) = world.frame(31, &pose_at(Vector3::new(0.0, 0.0, 1.0), 0.0), true);
+    for queue in [1, 3, 5] {
+        let ctx = KeyFrameContext {
+            reference,
+            last_keyframe_frame: stereo_frame.index - 1,
+            last_relocalisation_frame: None,
+            inliers: 20,
+            max_frames: 10,
+            mapping_queue: queue,
+            velocity: None,
+        };
+        let decision = needs_keyframe(&stereo_frame, &map, &world.rig, &ctx);
+        assert!(
+            decision.insert && !decision.interrupt_mapping,
+            "stereo, queue {queue}"
+        );
+    }
 }
 
 #[test]
