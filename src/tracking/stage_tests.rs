@@ -14,16 +14,29 @@ fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The reference keyframe's points seen by at least `observations`
+/// keyframes (what the keyframe rule compares the inliers with).
+fn points_seen_by(
+    map: &crate::map::Map,
+    reference: crate::map::KeyFrameId,
+    observations: usize,
+) -> usize {
+    ok(map.keyframe(reference))
+        .observed_points()
+        .filter(|(_, p)| {
+            map.map_point(*p)
+                .is_ok_and(|p| p.observation_count() >= observations)
+        })
+        .count()
+}
+
 #[test]
 fn keyframe_decision_follows_orb_slam3_stereo_rule() {
     // Points from 4 to 40 m: about half closer than the rig's 20 m.
     let world = PointWorld::new(3, 900, (14.0, 5.0, 4.0, 40.0));
     let (map, kfs) = world.keyframe_chain(3);
     let reference = kfs[2].0;
-    let reference_matches = ok(map.keyframe(reference))
-        .observed_points()
-        .filter(|(_, p)| map.map_point(*p).is_ok_and(|p| p.observation_count() >= 3))
-        .count();
+    let reference_matches = points_seen_by(&map, reference, 3);
     assert!(reference_matches > 300, "{reference_matches}");
     let r = reference_matches as f64;
     // The frame: 0.2 m ahead of the reference keyframe.
@@ -177,10 +190,7 @@ fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
     let mut mono = world.rig;
     mono.sensor = crate::camera::Sensor::Monocular;
     // A monocular reference counts its points seen twice.
-    let reference_matches = ok(map.keyframe(reference))
-        .observed_points()
-        .filter(|(_, p)| map.map_point(*p).is_ok_and(|p| p.observation_count() >= 2))
-        .count();
+    let reference_matches = points_seen_by(&map, reference, 2);
     assert!(reference_matches > 300, "{reference_matches}");
     let r = reference_matches as f64;
     let (mut frame, _) = world.frame(30, &pose_at(Vector3::new(0.0, 0.0, 1.0), 0.0), false);
