@@ -32,6 +32,27 @@ use crate::features::{
     PeriodicFilterConfig, Precision, SuperPointExtractor,
 };
 
+/// Hands the heap memory the process has freed back to the operating
+/// system: glibc's `malloc_trim(0)`, over every thread's arena. glibc keeps
+/// freed memory for reuse, so a burst of work on another thread (a global
+/// BA of the whole map) leaves the resident set at that burst's high-water
+/// mark (the steps of `EVALUATION.md`'s soak run); `spslam run` calls this
+/// after each global BA it applies. Returns whether memory was released; a
+/// no-op (`false`) where the C library is not glibc.
+pub fn release_free_heap() -> bool {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        // SAFETY: `malloc_trim` takes no pointer and only walks glibc's own
+        // free lists, under each arena's lock; it is safe to call from any
+        // thread at any time.
+        unsafe { libc::malloc_trim(0) != 0 }
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        false
+    }
+}
+
 /// The result of every fallible call.
 #[repr(i32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -148,7 +148,7 @@ impl PointWorld {
 
     /// A map point at the true position of world point `i`.
     pub fn add_point(&self, map: &mut Map, i: usize, first: KeyFrameId) -> MapPointId {
-        let descriptor = PointDescriptor::Float(self.descriptors[i].clone().into_boxed_slice());
+        let descriptor = PointDescriptor::Float(self.descriptors[i].clone().into());
         map.add_map_point(self.points[i], descriptor, first)
             .unwrap_or_else(|e| panic!("{e}"))
     }

@@ -57,7 +57,7 @@ fn pose(x: f64) -> Se3 {
 }
 
 fn descriptor() -> PointDescriptor {
-    PointDescriptor::Float(vec![0.0; DIM].into_boxed_slice())
+    PointDescriptor::Float(vec![0.0; DIM].into())
 }
 
 /// A chain of keyframes: keyframe k creates `points_per_kf / (overlap + 1)`

@@ -60,7 +60,7 @@ fn without_descriptors(mut parts: MapParts) -> MapParts {
         };
     }
     for p in &mut parts.points {
-        p.descriptor = spslam::map::PointDescriptor::Float(Box::new([]));
+        p.descriptor = spslam::map::PointDescriptor::Float(Vec::new().into());
     }
     parts
 }

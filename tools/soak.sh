@@ -7,11 +7,14 @@
 # then the figures (tools/soak_table.py).
 #
 #   tools/soak.sh DIR [FRAMES]     # DIR/sequence is rendered once and reused
+#
+# SPSLAM_BIN names the spslam binary (default ./target/release/spslam): a
+# copy keeps a half-hour run safe from a rebuild meanwhile.
 set -euo pipefail
 dir=${1:?usage: tools/soak.sh DIR [FRAMES]}
 frames=${2:-10000}
 seq=$dir/sequence
-spslam=./target/release/spslam
+spslam=${SPSLAM_BIN:-./target/release/spslam}
 if [[ ! -f $seq/poses/00.txt ]] || [[ $(wc -l < "$seq/poses/00.txt") -ne $frames ]]; then
   $spslam synth --out "$seq" --scene loop --frames "$frames" --size 320x240 --focal 200 \
     --no-depth --overwrite

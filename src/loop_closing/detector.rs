@@ -353,8 +353,15 @@ impl LoopDetector {
         let plan = self.plan_for(&*read()?, kf, &descriptor)?;
         match plan {
             DetectionPlan::Confirm => {
+                // The keyframe and the pending group's points are copied
+                // under a short read lock; the confirmation (a search by
+                // projection and a pose optimisation) holds none.
+                let detached = match &self.pending {
+                    Some(p) => read()?.excerpt(&[kf], &p.subject.group_points),
+                    None => Map::default(),
+                };
                 outcome.accepted =
-                    self.confirm_pending(&*read()?, kf, rig, &mut outcome.rejected)?;
+                    self.confirm_pending(&detached, kf, rig, &mut outcome.rejected)?;
             }
             DetectionPlan::Candidates(candidates) => {
                 let mut query_side = None;

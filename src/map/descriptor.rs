@@ -1,12 +1,16 @@
 //! A map point's representative descriptor.
 
+use std::sync::Arc;
+
 use crate::features::{DescriptorRef, DescriptorSet};
 
 /// One owned descriptor of either kind.
 #[derive(Debug, Clone, PartialEq)]
 pub enum PointDescriptor {
-    /// A float descriptor (SuperPoint: 256 values, unit L2 norm).
-    Float(Box<[f32]>),
+    /// A float descriptor (SuperPoint: 256 values, unit L2 norm), shared:
+    /// a copy of the point (a loop check's [`Map::excerpt`](super::Map::excerpt))
+    /// does not copy its values, and a new representative replaces it whole.
+    Float(Arc<[f32]>),
     /// A binary ORB descriptor.
     Binary([u8; 32]),
 }
@@ -20,7 +24,7 @@ impl PointDescriptor {
     /// Copies a borrowed descriptor.
     pub fn from_ref(row: &DescriptorRef<'_>) -> Self {
         match row {
-            DescriptorRef::Float(values) => Self::Float(values.to_vec().into_boxed_slice()),
+            DescriptorRef::Float(values) => Self::Float(Arc::from(*values)),
             DescriptorRef::Binary(bits) => Self::Binary(**bits),
         }
     }

@@ -13,10 +13,11 @@ impl Map {
     /// still name keyframes that were not copied, so the excerpt is for
     /// reading only: its [invariants](Map::check_invariants) do not hold.
     ///
-    /// The copy costs about a keyframe's descriptors per keyframe (1 MB
-    /// for 1000 SuperPoint keypoints) and a descriptor per point; made
-    /// under a read lock, it lets a check of tens of milliseconds run with
-    /// no lock held (snapshot, compute, apply).
+    /// The copy shares the keyframes' measurements and the points'
+    /// descriptors (reference counts, not copies of their values) and
+    /// copies the rest: a keyframe's point associations, a point's
+    /// observations. Made under a read lock, it lets a check of tens of
+    /// milliseconds run with no lock held (snapshot, compute, apply).
     pub fn excerpt(&self, keyframes: &[KeyFrameId], points: &[MapPointId]) -> Map {
         let mut excerpt = Map {
             next_keyframe: self.next_keyframe,

@@ -757,7 +757,7 @@ mod tests {
                 let p = map
                     .add_map_point(
                         Vector3::new(i as f64, 0.0, 5.0),
-                        PointDescriptor::Float(vec![0.0; DIM].into_boxed_slice()),
+                        PointDescriptor::Float(vec![0.0; DIM].into()),
                         kfs[0],
                     )
                     .expect("point");

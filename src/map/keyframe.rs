@@ -1,6 +1,8 @@
 //! Keyframes: a pose, the keypoints with their descriptor block, stereo
 //! depths, and which map point each keypoint observes.
 
+use std::sync::Arc;
+
 use nalgebra::Vector3;
 
 use crate::features::pyramid::ScaleTables;
@@ -71,8 +73,11 @@ pub struct KeyFrame {
     /// Timestamp in seconds.
     pub timestamp: f64,
     pose_cw: Se3,
-    /// What the frame measured.
-    pub measurements: FrameMeasurements,
+    /// What the frame measured; shared, as it never changes once the
+    /// keyframe is made: a copy of the keyframe (a loop check's
+    /// [`Map::excerpt`](super::Map::excerpt), local mapping's triangulation
+    /// snapshot) does not copy its descriptors.
+    pub measurements: Arc<FrameMeasurements>,
     map_points: Vec<Option<MapPointId>>,
 }
 
@@ -91,7 +96,7 @@ impl KeyFrame {
             frame_index,
             timestamp,
             pose_cw,
-            measurements,
+            measurements: Arc::new(measurements),
             map_points: vec![None; n],
         }
     }

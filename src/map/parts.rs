@@ -112,7 +112,7 @@ fn empty_descriptors() -> DescriptorSet {
 }
 
 fn empty_point_descriptor() -> PointDescriptor {
-    PointDescriptor::Float(Box::new([]))
+    PointDescriptor::Float(Vec::new().into())
 }
 
 /// One map point.

@@ -57,7 +57,7 @@ pub(crate) fn small_map(mut map: Map, keyframes: usize) -> Map {
         if let Some(prev) = previous {
             for i in 0..20 {
                 let position = Vector3::new(k as f64 + i as f64 * 0.1, 0.0, 5.0);
-                let descriptor = PointDescriptor::Float(vec![0.0; DIM].into_boxed_slice());
+                let descriptor = PointDescriptor::Float(vec![0.0; DIM].into());
                 let added = map.add_map_point(position, descriptor, prev).and_then(|p| {
                     map.add_observation(p, prev, 20 + i)?;
                     map.add_observation(p, kf, i)

@@ -2,6 +2,8 @@
 //! covisible keyframes (ORB-SLAM3's `CreateNewMapPoints`, stereo-aware),
 //! matching unmatched keypoints along epipolar lines.
 
+use std::sync::Arc;
+
 use nalgebra::{Matrix3, Matrix4, Vector3};
 
 use crate::camera::{CameraRig, Sensor};
@@ -24,7 +26,8 @@ struct View {
     id: KeyFrameId,
     pose: Se3,
     center: Vector3<f64>,
-    measurements: FrameMeasurements,
+    /// Shared with the keyframe (no copy of its descriptors).
+    measurements: Arc<FrameMeasurements>,
     unmatched: Vec<usize>,
 }
 
@@ -37,7 +40,7 @@ fn view(map: &Map, id: KeyFrameId) -> Option<View> {
         id,
         pose: kf.pose_cw(),
         center: kf.camera_center(),
-        measurements: kf.measurements.clone(),
+        measurements: Arc::clone(&kf.measurements),
         unmatched,
     })
 }

@@ -270,7 +270,10 @@ pub fn decode_points(
         _ => {
             let (dim, data) = decode_floats(stored)?;
             if dim == 0 {
-                vec![PointDescriptor::Float(Box::new([])); if data.is_empty() { count } else { 0 }]
+                vec![
+                    PointDescriptor::Float(Vec::new().into());
+                    if data.is_empty() { count } else { 0 }
+                ]
             } else {
                 data.chunks_exact(dim)
                     .map(|row| PointDescriptor::Float(row.into()))

@@ -106,6 +106,7 @@ impl FrameLoop<'_> {
         prepared: &Receiver<Prepared>,
         unreadable: &mut Vec<UnreadableFrame>,
     ) -> RunEnd {
+        let mut global_bas_seen = slam.global_ba_runs().len();
         for (index, frame) in self.frames.iter().enumerate() {
             if let Some(signal) = self.stop.requested() {
                 return RunEnd::Interrupted { signal };
@@ -155,6 +156,13 @@ impl FrameLoop<'_> {
                 }
             }
             self.bar.inc(1);
+            // A global BA's working set (the whole map's problem) is
+            // freed when it is applied; glibc would keep it as the
+            // process' high-water mark (EVALUATION.md, 'Soak').
+            if slam.global_ba_runs().len() > global_bas_seen {
+                global_bas_seen = slam.global_ba_runs().len();
+                spslam::ffi::release_free_heap();
+            }
             if let Some(log) = self.memory_log {
                 if let Err(e) = log.borrow_mut().after_frame(index + 1, slam) {
                     // Asked for and not written (a full disk): stop, and
