@@ -26,8 +26,9 @@ fn memory_freed_in_holes_on_another_thread_goes_back_to_the_system() {
     const BLOCK: usize = 64 * 1024; // below glibc's mmap threshold: from the arena
     const BLOCKS: usize = 3200; // 200 MiB
     const KEEP_EVERY: usize = 16; // a kept block after each 15 freed ones
-                                  // As a global BA's thread does: allocate and touch on a thread of its
-                                  // own (its own arena), keep a little, free the rest.
+
+    // As a global BA's thread does: allocate and touch on a thread of its
+    // own (its own arena), keep a little, free the rest.
     let kept = std::thread::spawn(|| {
         let blocks: Vec<Vec<u8>> = (0..BLOCKS)
             .map(|i| vec![(i % 251) as u8 + 1; BLOCK])
