@@ -1,12 +1,27 @@
 //! The brute-force matcher against a naive O(n²) reference (random float and
-//! binary descriptors, with ties), and the ratio / mutual semantics.
+//! binary descriptors, with ties), with and without a train layout (the
+//! ratio test's rivals beyond a descriptor cell), and the ratio / mutual
+//! semantics.
 
 use proptest::prelude::*;
 use spslam::features::DescriptorSet;
-use spslam::matching::{match_brute_force, Match, MatchError, MatchParams};
+use spslam::matching::{
+    match_brute_force, match_brute_force_spaced, Match, MatchError, MatchParams, TrainLayout,
+};
 
 /// The reference: all distances, first index wins ties, ratio strict.
 fn naive(a: &DescriptorSet, b: &DescriptorSet, p: MatchParams) -> Vec<Match> {
+    naive_spaced(a, b, p, None)
+}
+
+/// The reference with a layout: the second best is the nearest train row
+/// other than the best at least the best's rival distance from it.
+fn naive_spaced(
+    a: &DescriptorSet,
+    b: &DescriptorSet,
+    p: MatchParams,
+    layout: Option<TrainLayout<'_>>,
+) -> Vec<Match> {
     let (n, m) = (a.len(), b.len());
     let d = |i: usize, j: usize| a.distance(i, b, j).unwrap_or(f32::NAN);
     let argmin = |it: &mut dyn Iterator<Item = (usize, f32)>| {
@@ -23,8 +38,14 @@ fn naive(a: &DescriptorSet, b: &DescriptorSet, p: MatchParams) -> Vec<Match> {
         let Some((j, dj)) = argmin(&mut (0..m).map(|j| (j, d(i, j)))) else {
             continue;
         };
+        let rival = |k: usize| {
+            layout.is_none_or(|l| {
+                let ([xj, yj], [xk, yk]) = (l.positions[j], l.positions[k]);
+                (xk - xj).hypot(yk - yj) >= l.min_rival_distance[j]
+            })
+        };
         let second = (0..m)
-            .filter(|&k| k != j)
+            .filter(|&k| k != j && rival(k))
             .map(|k| d(i, k))
             .fold(f32::INFINITY, f32::min);
         if dj > p.max_distance {
@@ -110,6 +131,74 @@ proptest! {
         let got = match_brute_force(&a, &b, p).map_err(|e| TestCaseError::fail(e.to_string()))?;
         prop_assert_eq!(got, naive(&a, &b, p));
     }
+}
+
+proptest! {
+    #[test]
+    fn spaced_matches_equal_the_naive_reference(
+        a in prop::collection::vec(any::<u8>(), 0..120),
+        b in prop::collection::vec(any::<u8>(), 0..120),
+        dim in 1usize..6,
+        p in params(),
+        cells in prop::collection::vec((0u8..6, 0u8..6, 0u8..4), 120),
+    ) {
+        let (a, b) = (float_set(a, dim), float_set(b, dim));
+        // Positions on a coarse grid, so that rows within a gap are common.
+        let positions: Vec<[f32; 2]> =
+            cells.iter().take(b.len()).map(|&(x, y, _)| [f32::from(x) * 4.0, f32::from(y) * 4.0]).collect();
+        let gaps: Vec<f32> = cells.iter().take(b.len()).map(|&(_, _, g)| f32::from(g) * 4.0).collect();
+        let layout = TrainLayout { positions: &positions, min_rival_distance: &gaps };
+        let got = match_brute_force_spaced(&a, &b, p, Some(layout))
+            .map_err(|e| TestCaseError::fail(e.to_string()))?;
+        prop_assert_eq!(got, naive_spaced(&a, &b, p, Some(layout)));
+    }
+}
+
+#[test]
+fn a_runner_up_within_the_cell_is_no_rival() {
+    // Train rows 0 and 1 look alike (one descriptor cell of a SuperPoint
+    // map); row 2 is different. The query is closest to row 0.
+    let query = rows(&[[0.0, 0.0]]);
+    let train = rows(&[[0.1, 0.0], [0.12, 0.0], [3.0, 3.0]]);
+    let p = MatchParams {
+        ratio: Some(0.7),
+        max_distance: f32::INFINITY,
+        mutual: true,
+    };
+    // The plain ratio test rejects it: 0.1 >= 0.7 * 0.12.
+    assert!(match_brute_force(&query, &train, p).is_ok_and(|m| m.is_empty()));
+    let gaps = [8.0; 3];
+    // Rows 0 and 1 seen 5 px apart: row 1 is no rival, row 2 is (0.1 < 0.7 * 4.2).
+    let near = [[100.0, 100.0], [104.0, 103.0], [300.0, 50.0]];
+    let layout = TrainLayout {
+        positions: &near,
+        min_rival_distance: &gaps,
+    };
+    let m = match_brute_force_spaced(&query, &train, p, Some(layout)).unwrap_or_default();
+    assert_eq!(
+        m.iter().map(|m| (m.query, m.train)).collect::<Vec<_>>(),
+        vec![(0, 0)]
+    );
+    // Seen 20 px apart, the two are distinct points that look alike: rejected.
+    let far = [[100.0, 100.0], [120.0, 100.0], [300.0, 50.0]];
+    let layout = TrainLayout {
+        positions: &far,
+        min_rival_distance: &gaps,
+    };
+    assert!(match_brute_force_spaced(&query, &train, p, Some(layout)).is_ok_and(|m| m.is_empty()));
+    // A layout of the wrong length is an error that names the counts.
+    let short = TrainLayout {
+        positions: &far[..2],
+        min_rival_distance: &gaps,
+    };
+    assert!(matches!(
+        match_brute_force_spaced(&query, &train, p, Some(short)),
+        Err(MatchError::LayoutLength {
+            rows: 3,
+            positions: 2,
+            distances: 3
+        })
+    ));
 }
 
 fn rows(rows: &[[f32; 2]]) -> DescriptorSet {

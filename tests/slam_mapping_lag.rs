@@ -22,7 +22,7 @@ use spslam::settings::SlamSettings;
 use spslam::system::SlamSystem;
 use spslam::tracking::Frontend;
 
-use common::sensor_runs::{orb_system, run_sensor, DepthNoise};
+use common::sensor_runs::{self, orb_system, run_sensor, DepthNoise};
 use common::synthetic_slam::{rig_of, run_against_truth, small_lap};
 use spslam::camera::Sensor;
 use spslam::eval::{ate, Alignment};
@@ -114,11 +114,38 @@ fn superpoint_tracks_the_whole_lap_when_mapping_lags_five_frames() {
 /// aborted by tracking's interrupts.
 fn orb_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64, usize) {
     let sequence = small_lap(SceneName::Loop);
-    let mut slam = orb_system(&sequence, sensor);
+    let slam = orb_system(&sequence, sensor);
+    sensor_lap("ORB", &sequence, slam, sensor, lag)
+}
+
+/// [`orb_sensor_lap`] with SuperPoint + ANMS (int8, one level), RGB-D or
+/// monocular.
+fn superpoint_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64, usize) {
+    let sequence = small_lap(SceneName::Loop);
+    let rig = sensor_runs::rig_for(&sequence, sensor);
+    let cam = *sequence.camera();
+    let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
+    let config = settings.extractor.superpoint_config(1, 1);
+    let frontend = ok(Frontend::single(Box::new(common::extractor(config)), &rig));
+    let mut slam = SlamSystem::new(rig, frontend);
+    if let Some(mapper) = slam.mapper_mut() {
+        mapper.check_invariants = true;
+    }
+    sensor_lap("SuperPoint + ANMS", &sequence, slam, sensor, lag)
+}
+
+/// Runs `slam` over the lap (see [`orb_sensor_lap`]).
+fn sensor_lap(
+    name: &str,
+    sequence: &spslam::dataset::synthetic::SyntheticSequence,
+    mut slam: SlamSystem,
+    sensor: Sensor,
+    lag: usize,
+) -> (Vec<usize>, usize, usize, f64, usize) {
     if lag > 0 {
         ok(slam.set_mapping_lag(Some(lag)));
     }
-    let run = run_sensor(&sequence, &mut slam, sensor, DepthNoise::KINECT_TUM, 0);
+    let run = run_sensor(sequence, &mut slam, sensor, DepthNoise::KINECT_TUM, 0);
     let summary = ok(slam.summary());
     let maps = summary
         .maps
@@ -140,7 +167,7 @@ fn orb_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usize, f64,
     let result = ok(ate(&truth, &estimate, alignment));
     let percent = 100.0 * result.stats.rmse / run.path_length();
     eprintln!(
-        "ORB {sensor:?}, mapping lag {lag}: lost {lost:?}, {maps} maps, {} keyframes, ATE {:.3} m ({percent:.3} % of {:.1} m)",
+        "{name} {sensor:?}, mapping lag {lag}: lost {lost:?}, {maps} maps, {} keyframes, ATE {:.3} m ({percent:.3} % of {:.1} m)",
         summary.keyframes_inserted,
         result.stats.rmse,
         run.path_length()
@@ -173,6 +200,32 @@ fn rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames_as_well_as_without_th
         "ATE {lagged:.3} % with the lag, {quiet:.3} % without"
     );
     assert!(lagged <= 0.15, "ATE {lagged:.3} % of the path");
+}
+
+/// SuperPoint + ANMS's RGB-D lap when mapping lags five frames. Under the
+/// lag the reference keyframe's points lack what local mapping adds, and
+/// in the turns the motion model fails; tracking then rests on descriptor
+/// matches with the reference keyframe or the last frame, whose ratio test
+/// must not pit two of that view's points within one descriptor cell
+/// against each other (`tracking::search::match_descriptors_in_view`).
+/// Measured (AMD EPYC, AVX2, 2026-12-02): with the plain ratio test 15 of
+/// frames 136–152 were lost, in 4 maps (ATE 25.6 m); with the rivals beyond
+/// the cell every frame is tracked in one map, ATE 3.84 m (1.66 % of
+/// 231.4 m, the tests' Kinect-like depth noise on a lap whose turns are
+/// taken at 11.5° per frame). What this guards first is every frame in one
+/// map; the ATE bound leaves 1.8× over the measurement, as the int8
+/// outputs, and so the drift, differ between CPU kinds.
+#[test]
+fn superpoint_rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames() {
+    let test = "superpoint_rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames";
+    if !common::model_available(test) {
+        return;
+    }
+    let (lost, maps, _, lagged, interrupted) = superpoint_sensor_lap(Sensor::Rgbd, 5);
+    assert_eq!(interrupted, 0, "an RGB-D run interrupted local BAs");
+    assert!(lost.is_empty(), "frames not tracked: {lost:?}");
+    assert_eq!(maps, 1, "maps left unmerged");
+    assert!(lagged <= 3.0, "ATE {lagged:.3} % of the path");
 }
 
 /// Monocular tracking when mapping lags (issue 25's target is every frame;

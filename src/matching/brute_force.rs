@@ -40,6 +40,20 @@ impl Default for MatchParams {
     }
 }
 
+/// Where each train row was seen, for a ratio test that does not pit two
+/// rows from one descriptor cell against each other (see
+/// [`match_brute_force_spaced`]).
+#[derive(Clone, Copy, Debug)]
+pub struct TrainLayout<'a> {
+    /// Each train row's keypoint in its source view, in level-0 pixels.
+    pub positions: &'a [[f32; 2]],
+    /// Each train row's rival distance in level-0 pixels: a second-best
+    /// row closer than the best row's value to the best row's keypoint is
+    /// not its rival (the descriptor cell scaled by the keypoint's octave;
+    /// 0 for descriptors computed at each keypoint).
+    pub min_rival_distance: &'a [f32],
+}
+
 /// Matches every query row against all train rows. Returns the accepted
 /// matches in query order. Errors when the kinds differ or a parameter is
 /// out of range.
@@ -48,7 +62,36 @@ pub fn match_brute_force(
     train: &DescriptorSet,
     params: MatchParams,
 ) -> Result<Vec<Match>, MatchError> {
+    match_brute_force_spaced(query, train, params, None)
+}
+
+/// [`match_brute_force`] where the train rows come from one view and
+/// `layout` says where: the ratio test's second best is sought only among
+/// train rows at least the best row's `min_rival_distance` from it, as
+/// [`ProjectionParams::min_rival_distance`](super::ProjectionParams::min_rival_distance)
+/// does for the search by projection. SuperPoint's descriptors are sampled
+/// from a map with one vector per 8×8 cell, so two points of one view less
+/// than a cell apart share most of their descriptor, and the plain ratio
+/// test drops a frame keypoint whose true point has such a neighbour.
+/// Errors when the kinds differ, a parameter is out of range, or the
+/// layout's length is not the train rows'.
+pub fn match_brute_force_spaced(
+    query: &DescriptorSet,
+    train: &DescriptorSet,
+    params: MatchParams,
+    layout: Option<TrainLayout<'_>>,
+) -> Result<Vec<Match>, MatchError> {
     check_kinds(query.kind(), train.kind())?;
+    if let Some(l) = layout {
+        let rows = train.len();
+        if l.positions.len() != rows || l.min_rival_distance.len() != rows {
+            return Err(MatchError::LayoutLength {
+                rows,
+                positions: l.positions.len(),
+                distances: l.min_rival_distance.len(),
+            });
+        }
+    }
     if let Some(r) = params.ratio {
         if !(r.is_finite() && r > 0.0) {
             return Err(MatchError::InvalidParameter {
@@ -71,7 +114,7 @@ pub fn match_brute_force(
                 return Ok(Vec::new());
             }
             let (n_query, n_train) = (q.len() / dim, t.len() / dim);
-            let mut matches = match_rows(n_query, n_train, params, |rows| {
+            let mut matches = match_rows(n_query, n_train, params, layout, |rows| {
                 for_each_l2_row(q, t, *dim, rows)
             });
             // The product's distances decide; the one reported is computed
@@ -83,7 +126,7 @@ pub fn match_brute_force(
             matches
         }
         (DescriptorSet::Binary { data: q }, DescriptorSet::Binary { data: t }) => {
-            match_rows(q.len(), t.len(), params, |row| {
+            match_rows(q.len(), t.len(), params, layout, |row| {
                 let mut distances = vec![0.0f32; t.len()];
                 for (i, a) in q.iter().enumerate() {
                     for (d, b) in distances.iter_mut().zip(t) {
@@ -97,12 +140,27 @@ pub fn match_brute_force(
     })
 }
 
+/// The smallest distance of a row other than `best` whose keypoint lies at
+/// least `best`'s rival distance from `best`'s (infinite when none does).
+fn second_beyond_cell(distances: &[f32], layout: TrainLayout<'_>, best: usize) -> f32 {
+    let [bx, by] = layout.positions[best];
+    let gap = layout.min_rival_distance[best];
+    distances
+        .iter()
+        .zip(layout.positions)
+        .enumerate()
+        .filter(|&(j, (_, [x, y]))| j != best && (x - bx).hypot(y - by) >= gap)
+        .map(|(_, (&d, _))| d)
+        .fold(f32::INFINITY, f32::min)
+}
+
 /// The one decision for both metrics: `rows` hands over each query row's
 /// distances to every train row, in ascending query order.
 fn match_rows(
     n_query: usize,
     n_train: usize,
     params: MatchParams,
+    layout: Option<TrainLayout<'_>>,
     rows: impl FnOnce(&mut dyn FnMut(usize, &[f32])),
 ) -> Vec<Match> {
     let mut column_best: Vec<Option<(usize, f32)>> = vec![None; n_train];
@@ -114,6 +172,9 @@ fn match_rows(
             if params.mutual && column_best[j].is_none_or(|(_, cd)| d < cd) {
                 column_best[j] = Some((i, d));
             }
+        }
+        if let (Some(layout), Some((b, _))) = (layout, best.best) {
+            best.second = second_beyond_cell(distances, layout, b);
         }
         row_best.push(best);
     });

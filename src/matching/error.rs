@@ -19,6 +19,19 @@ pub enum MatchError {
         /// Descriptor rows.
         descriptors: usize,
     },
+    /// A train layout does not hold one position and one rival distance
+    /// per train row.
+    #[error(
+        "{rows} train rows but {positions} positions and {distances} rival distances in the layout"
+    )]
+    LayoutLength {
+        /// Train rows.
+        rows: usize,
+        /// Positions given.
+        positions: usize,
+        /// Rival distances given.
+        distances: usize,
+    },
     /// A parameter is out of range.
     #[error("invalid matching parameter `{name}` = {value}: {expected}")]
     InvalidParameter {

@@ -25,7 +25,9 @@ mod temporal;
 
 pub use crate::features::DistanceThresholds;
 pub use best_two::BestTwo;
-pub use brute_force::{match_brute_force, Match, MatchParams};
+pub use brute_force::{
+    match_brute_force, match_brute_force_spaced, Match, MatchParams, TrainLayout,
+};
 pub use error::MatchError;
 pub use grid::{KeypointGrid, GRID_COLS, GRID_ROWS};
 pub use projection::{

@@ -7,9 +7,10 @@ use crate::optim::{LieGroup, Se3};
 use super::frame::Frame;
 use super::pose::refine_pose;
 use super::relocalise::pnp_ransac;
-use super::search::{match_descriptors, match_projected, VisiblePoint};
+use super::search::{match_descriptors_in_view, match_projected, VisiblePoint};
 use crate::camera::{CameraRig, Sensor};
 use crate::error::SlamError;
+use crate::features::Keypoint;
 
 /// ORB-SLAM3's window for stereo (`th = 7`), in level-0 pixels per scale.
 pub const MOTION_MODEL_RADIUS: f32 = 7.0;
@@ -111,6 +112,19 @@ pub(crate) fn track_with_motion_model(
 /// 15 matches and 10 inliers after refinement. When fewer than half the
 /// matches survive (a sudden turn puts the last pose far off), a PnP RANSAC
 /// pose is refined as well and the one with more inliers is kept.
+///
+/// The ratio test does not pit two of the keyframe's points less than the
+/// descriptor cell apart in its image against each other
+/// ([`match_descriptors_in_view`]), as the search by projection does not:
+/// SuperPoint's neighbours within a cell share most of their descriptor,
+/// and the plain test dropped the frame keypoints of many a point with
+/// such a neighbour. That is what lost the demo lap's third corner when
+/// local mapping lags (`spslam run --inline-mapping --mapping-lag 5`,
+/// RGB-D, SuperPoint + ANMS): at frame 137 the motion model failed in the
+/// turn, the reference keyframe gave 16 matches with the plain test, and
+/// frames 137–141 were lost (227/232, a second map merged back, ATE
+/// 0.49 m); with the rivals beyond the cell every frame is tracked in one
+/// map (0.13 m; EVALUATION.md, "Local mapping that lags").
 pub(crate) fn track_reference_keyframe(
     frame: &mut Frame,
     last_pose: &Se3,
@@ -121,7 +135,11 @@ pub(crate) fn track_reference_keyframe(
     let Ok(kf) = map.keyframe(reference) else {
         return Ok(false);
     };
-    let points: Vec<MapPointId> = kf.observed_points().map(|(_, p)| p).collect();
+    let keypoints = &kf.measurements.keypoints;
+    let points: Vec<(MapPointId, &Keypoint)> = kf
+        .observed_points()
+        .filter_map(|(i, p)| Some((p, keypoints.get(i)?)))
+        .collect();
     track_by_descriptors(frame, last_pose, &points, map, rig, "reference keyframe")
 }
 
@@ -136,11 +154,11 @@ pub(crate) fn track_last_frame(
     map: &Map,
     rig: &CameraRig,
 ) -> Result<bool, SlamError> {
-    let points: Vec<MapPointId> = last
+    let points: Vec<(MapPointId, &Keypoint)> = last
         .map_points
         .iter()
-        .flatten()
-        .filter_map(|p| map.resolve_point(*p))
+        .zip(&last.features.keypoints)
+        .filter_map(|(p, k)| Some((map.resolve_point((*p)?)?, k)))
         .collect();
     track_by_descriptors(frame, &last.pose_cw, &points, map, rig, "last frame")
 }
@@ -150,12 +168,12 @@ pub(crate) fn track_last_frame(
 fn track_by_descriptors(
     frame: &mut Frame,
     last_pose: &Se3,
-    points: &[MapPointId],
+    points: &[(MapPointId, &Keypoint)],
     map: &Map,
     rig: &CameraRig,
     against: &'static str,
 ) -> Result<bool, SlamError> {
-    let matches = match_descriptors(frame, map, points, 0.7)?;
+    let matches = match_descriptors_in_view(frame, map, points, 0.7)?;
     if matches.len() < 15 {
         tracing::debug!(
             frame = frame.index,

@@ -18,9 +18,10 @@ use crate::optim::Se3;
 
 use super::frame::Frame;
 use super::pose::refine_pose;
-use super::search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
+use super::search::{match_descriptors_in_view, match_projected, visible_in_frame, VisiblePoint};
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
+use crate::features::Keypoint;
 
 /// Keyframes tried, newest first, without a candidate source.
 pub const MAX_SCANNED_KEYFRAMES: usize = 30;
@@ -188,8 +189,12 @@ fn relocalise_among(
         let Ok(keyframe) = map.keyframe(kf) else {
             continue;
         };
-        let points: Vec<MapPointId> = keyframe.observed_points().map(|(_, p)| p).collect();
-        let matches = match_descriptors(frame, map, &points, 0.75)?;
+        let keypoints = &keyframe.measurements.keypoints;
+        let points: Vec<(MapPointId, &Keypoint)> = keyframe
+            .observed_points()
+            .filter_map(|(i, p)| Some((p, keypoints.get(i)?)))
+            .collect();
+        let matches = match_descriptors_in_view(frame, map, &points, 0.75)?;
         if matches.len() < 15 {
             tracing::trace!(
                 frame = frame.index,

@@ -2,11 +2,11 @@
 
 use nalgebra::Vector3;
 
-use crate::features::DescriptorSet;
+use crate::features::{DescriptorSet, Keypoint};
 use crate::map::{Map, MapPointId};
 use crate::matching::{
-    match_brute_force, search_by_projection_filtered, CandidateFilter, MatchParams, ProjectedPoint,
-    ProjectionParams,
+    match_brute_force_spaced, search_by_projection_filtered, CandidateFilter, MatchParams,
+    ProjectedPoint, ProjectionParams, TrainLayout,
 };
 use crate::optim::LieGroup;
 
@@ -121,16 +121,51 @@ pub(crate) fn match_projected(
 }
 
 /// Matches the frame's descriptors against the given points' descriptors
-/// (ratio + mutual), for tracking a reference keyframe and relocalisation.
-/// Returns `(keypoint index, point)` pairs.
+/// (ratio + mutual), for the loop detector's candidate groups, whose points
+/// come from several keyframes. Returns `(keypoint index, point)` pairs.
 pub(crate) fn match_descriptors(
     frame: &Frame,
     map: &Map,
     points: &[MapPointId],
     ratio: f32,
 ) -> Result<Vec<(usize, MapPointId)>, SlamError> {
+    let seen: Vec<(MapPointId, Option<&Keypoint>)> = points.iter().map(|&p| (p, None)).collect();
+    match_seen(frame, map, &seen, ratio)
+}
+
+/// [`match_descriptors`] for points seen in one view (a keyframe or the
+/// last frame; each with the keypoint that observes it there), for tracking
+/// the reference keyframe or the last frame and for relocalisation. The
+/// ratio test does not pit two of the view's points less than the
+/// extractor's descriptor cell apart against each other (see
+/// [`TrainLayout`]), as the search by projection does not.
+pub(crate) fn match_descriptors_in_view(
+    frame: &Frame,
+    map: &Map,
+    points: &[(MapPointId, &Keypoint)],
+    ratio: f32,
+) -> Result<Vec<(usize, MapPointId)>, SlamError> {
+    let seen: Vec<(MapPointId, Option<&Keypoint>)> =
+        points.iter().map(|&(p, k)| (p, Some(k))).collect();
+    match_seen(frame, map, &seen, ratio)
+}
+
+/// The one descriptor match of tracking and loop closing: the points'
+/// descriptors against the frame's, with the rival test of
+/// [`match_descriptors_in_view`] where every point has its keypoint and the
+/// extractor has a descriptor cell.
+fn match_seen(
+    frame: &Frame,
+    map: &Map,
+    points: &[(MapPointId, Option<&Keypoint>)],
+    ratio: f32,
+) -> Result<Vec<(usize, MapPointId)>, SlamError> {
     let kind = frame.features.descriptors.kind();
     let mut ids = Vec::with_capacity(points.len());
+    let mut positions = Vec::with_capacity(points.len());
+    let mut rival_distances = Vec::with_capacity(points.len());
+    let cell = frame.descriptor_cell.unwrap_or(0.0);
+    let mut spaced = cell > 0.0;
     let mut set = match kind {
         crate::features::DescriptorKind::Float { dim } => DescriptorSet::Float {
             dim,
@@ -140,7 +175,7 @@ pub(crate) fn match_descriptors(
             data: Vec::with_capacity(points.len()),
         },
     };
-    for &id in points {
+    for &(id, keypoint) in points {
         let Ok(p) = map.map_point(id) else { continue };
         match (&mut set, p.descriptor.as_ref()) {
             (DescriptorSet::Float { dim, data }, crate::features::DescriptorRef::Float(row))
@@ -154,12 +189,28 @@ pub(crate) fn match_descriptors(
             _ => continue,
         }
         ids.push(id);
+        match keypoint {
+            Some(k) => {
+                let scale = usize::try_from(k.octave)
+                    .ok()
+                    .and_then(|o| frame.scales.scale_factors.get(o))
+                    .copied()
+                    .unwrap_or(1.0);
+                positions.push([k.x, k.y]);
+                rival_distances.push(cell * scale);
+            }
+            None => spaced = false,
+        }
     }
     if ids.is_empty() {
         return Ok(Vec::new());
     }
     let thresholds = frame.distance_thresholds;
-    let matches = match_brute_force(
+    let layout = spaced.then_some(TrainLayout {
+        positions: &positions,
+        min_rival_distance: &rival_distances,
+    });
+    let matches = match_brute_force_spaced(
         &frame.features.descriptors,
         &set,
         MatchParams {
@@ -167,6 +218,7 @@ pub(crate) fn match_descriptors(
             max_distance: thresholds.high,
             mutual: true,
         },
+        layout,
     )
     .in_stage("descriptor matching")?;
     Ok(matches.iter().map(|m| (m.query, ids[m.train])).collect())
