@@ -7,7 +7,9 @@ use crate::optim::{LieGroup, Se3};
 use super::frame::Frame;
 use super::pose::refine_pose;
 use super::relocalise::pnp_ransac;
-use super::search::{match_descriptors_in_view, match_projected, VisiblePoint};
+use super::search::{
+    keyframe_points_in_view, match_descriptors_in_view, match_projected, VisiblePoint,
+};
 use crate::camera::{CameraRig, Sensor};
 use crate::error::SlamError;
 use crate::features::Keypoint;
@@ -135,11 +137,7 @@ pub(crate) fn track_reference_keyframe(
     let Ok(kf) = map.keyframe(reference) else {
         return Ok(false);
     };
-    let keypoints = &kf.measurements.keypoints;
-    let points: Vec<(MapPointId, &Keypoint)> = kf
-        .observed_points()
-        .filter_map(|(i, p)| Some((p, keypoints.get(i)?)))
-        .collect();
+    let points = keyframe_points_in_view(kf);
     track_by_descriptors(frame, last_pose, &points, map, rig, "reference keyframe")
 }
 

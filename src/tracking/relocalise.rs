@@ -18,10 +18,12 @@ use crate::optim::Se3;
 
 use super::frame::Frame;
 use super::pose::refine_pose;
-use super::search::{match_descriptors_in_view, match_projected, visible_in_frame, VisiblePoint};
+use super::search::{
+    keyframe_points_in_view, match_descriptors_in_view, match_projected, visible_in_frame,
+    VisiblePoint,
+};
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
-use crate::features::Keypoint;
 
 /// Keyframes tried, newest first, without a candidate source.
 pub const MAX_SCANNED_KEYFRAMES: usize = 30;
@@ -189,11 +191,7 @@ fn relocalise_among(
         let Ok(keyframe) = map.keyframe(kf) else {
             continue;
         };
-        let keypoints = &keyframe.measurements.keypoints;
-        let points: Vec<(MapPointId, &Keypoint)> = keyframe
-            .observed_points()
-            .filter_map(|(i, p)| Some((p, keypoints.get(i)?)))
-            .collect();
+        let points = keyframe_points_in_view(keyframe);
         let matches = match_descriptors_in_view(frame, map, &points, 0.75)?;
         if matches.len() < 15 {
             tracing::trace!(

@@ -3,7 +3,7 @@
 use nalgebra::Vector3;
 
 use crate::features::{DescriptorSet, Keypoint};
-use crate::map::{Map, MapPointId};
+use crate::map::{KeyFrame, Map, MapPointId};
 use crate::matching::{
     match_brute_force_spaced, search_by_projection_filtered, CandidateFilter, MatchParams,
     ProjectedPoint, ProjectionParams, TrainLayout,
@@ -131,6 +131,15 @@ pub(crate) fn match_descriptors(
 ) -> Result<Vec<(usize, MapPointId)>, SlamError> {
     let seen: Vec<(MapPointId, Option<&Keypoint>)> = points.iter().map(|&p| (p, None)).collect();
     match_seen(frame, map, &seen, ratio)
+}
+
+/// A keyframe's points, each with the keypoint that observes it there: what
+/// [`match_descriptors_in_view`] takes for a keyframe.
+pub(crate) fn keyframe_points_in_view(kf: &KeyFrame) -> Vec<(MapPointId, &Keypoint)> {
+    let keypoints = &kf.measurements.keypoints;
+    kf.observed_points()
+        .filter_map(|(i, p)| Some((p, keypoints.get(i)?)))
+        .collect()
 }
 
 /// [`match_descriptors`] for points seen in one view (a keyframe or the
