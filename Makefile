@@ -15,7 +15,7 @@ OUT ?= out
 SPSLAM_FEATURES ?=
 CARGO_FEATURES = $(if $(SPSLAM_FEATURES),--features $(SPSLAM_FEATURES))
 
-.PHONY: all setup setup-gpu setup-viewer test-viewer lint-viewer gpu-check build rust-release demo test test-rust test-python test-python-package python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint train-superpoint-lite bench-homography
+.PHONY: all setup setup-gpu setup-viewer test-viewer lint-viewer gpu-check build rust-release demo test test-rust test-rust-durations test-python test-python-package python test-fuzz fuzz-long soak lint bench header clean-deps evaluate setup-train train-superpoint train-superpoint-lite bench-homography
 
 all: build
 
@@ -100,8 +100,14 @@ lint: setup
 	$(CARGO) clippy --release --all-targets -- -D warnings
 	$(CARGO) clippy --release -p spslam-python -- -D warnings
 
+# Every test in its own process, two at a time, the longest first (about
+# half the time of `cargo test`, which runs one binary after another);
+# `make test-rust-durations` records the order's times in tools/test_durations.json.
 test-rust: build
-	$(CARGO) test --release $(CARGO_FEATURES)
+	python3 tools/run_tests.py --jobs 2 -- --release $(CARGO_FEATURES)
+
+test-rust-durations: build
+	python3 tools/run_tests.py --jobs 2 --write-durations -- --release $(CARGO_FEATURES)
 
 # rerun's viewer and Python SDK (PyPI rerun-sdk, the version of the Rust
 # SDK compiled into spslam) in .deps/venv-viewer: `spslam run --viewer`

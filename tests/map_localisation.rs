@@ -19,7 +19,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use common::synthetic_slam::{images, rig_of, small_sequence};
+use common::synthetic_slam::{cached_images, rig_of, small_sequence};
 use spslam::dataset::synthetic::{SceneName, SyntheticSequence};
 use spslam::loop_closing::LoopThresholds;
 use spslam::optim::Se3;
@@ -47,7 +47,7 @@ fn system(sequence: &SyntheticSequence) -> SlamSystem {
 
 fn process(slam: &mut SlamSystem, sequence: &SyntheticSequence, frames: std::ops::Range<usize>) {
     for i in frames {
-        let (t, l, r) = images(sequence, i);
+        let (t, l, r) = cached_images(sequence, i);
         ok(slam.process(i, t, l.view(), r.view()));
     }
     ok(slam.finish());

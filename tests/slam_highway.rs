@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::synthetic_slam::{images, orb_slam, rig_of, small_sequence};
+use common::synthetic_slam::{cached_images, orb_slam, rig_of, small_sequence};
 use spslam::dataset::synthetic::SceneName;
 use spslam::system::SlamSystem;
 use spslam::tracking::Frontend;
@@ -22,7 +22,7 @@ fn run(
     frames: usize,
 ) -> Vec<usize> {
     for i in 0..frames {
-        let (t, l, r) = images(sequence, i);
+        let (t, l, r) = cached_images(sequence, i);
         ok(slam.process(i, t, l.view(), r.view()));
     }
     ok(slam.finish());

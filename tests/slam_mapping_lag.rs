@@ -96,7 +96,7 @@ fn superpoint_tracks_the_whole_lap_when_mapping_lags_five_frames() {
     let cam = *sequence.camera();
     let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
     let config = settings.extractor.superpoint_config(1, 1);
-    let sp = || -> ExtractorBox { Box::new(common::extractor(config.clone())) };
+    let sp = || -> ExtractorBox { Box::new(common::cached_extractor(config.clone())) };
     // Measured at e1d928d and at 64204f6 alike (Intel Xeon, AVX-512 VNNI):
     // ATE 1.747 m (0.755 % of 231.4 m), every frame tracked in one map;
     // the AMD EPYC (AVX2) CI run of 64204f6 passed the earlier bound of
@@ -126,7 +126,10 @@ fn superpoint_sensor_lap(sensor: Sensor, lag: usize) -> (Vec<usize>, usize, usiz
     let cam = *sequence.camera();
     let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
     let config = settings.extractor.superpoint_config(1, 1);
-    let frontend = ok(Frontend::single(Box::new(common::extractor(config)), &rig));
+    let frontend = ok(Frontend::single(
+        Box::new(common::cached_extractor(config)),
+        &rig,
+    ));
     let mut slam = SlamSystem::new(rig, frontend);
     if let Some(mapper) = slam.mapper_mut() {
         mapper.check_invariants = true;

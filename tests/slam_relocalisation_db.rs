@@ -16,7 +16,7 @@
 
 mod common;
 
-use common::synthetic_slam::{images, rig_of, small_sequence};
+use common::synthetic_slam::{cached_images, rig_of, small_sequence};
 use spslam::dataset::synthetic::{SceneName, SyntheticSequence};
 use spslam::features::GrayImage;
 use spslam::settings::ExtractorSettings;
@@ -113,7 +113,7 @@ fn run(sequence: &SyntheticSequence, loop_closing: bool) -> Run {
     for (index, input) in inputs.iter().enumerate() {
         let (left, right) = match input.shows {
             Some(i) => {
-                let (_, l, r) = images(sequence, i);
+                let (_, l, r) = cached_images(sequence, i);
                 (l, r)
             }
             None => (black(), black()),

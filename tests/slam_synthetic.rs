@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::synthetic_slam::{images, orb_slam, small_sequence};
+use common::synthetic_slam::{cached_images, images, orb_slam, small_sequence};
 use nalgebra::Isometry3;
 use spslam::dataset::synthetic::SceneName;
 use spslam::eval::{evaluate, EvalOptions, Pairing, Trajectory};
@@ -84,7 +84,11 @@ fn run_orb_slam_with(
     let mut truth = Vec::with_capacity(sequence.len());
     let mut timestamps = Vec::with_capacity(sequence.len());
     for i in 0..sequence.len() {
-        let (timestamp, l, r) = images(&sequence, i);
+        let (timestamp, l, r) = if threaded {
+            images(&sequence, i)
+        } else {
+            cached_images(&sequence, i)
+        };
         slam.process(i, timestamp, l.view(), r.view())
             .unwrap_or_else(|e| panic!("frame {i}: {e}"));
         truth.push(first_inverse * sequence.pose(i));

@@ -7,18 +7,22 @@
 //! configuration give the same keypoints and descriptors), so a cached
 //! result is exactly what a second extraction would return. Keys are two
 //! independent 64-bit hashes of the configuration's tag and the pixels.
+//! Under `tools/run_tests.py` the cache goes on disk as well
+//! ([`super::disk_cache`]): the test processes of one run share it.
 //! Only for runs with local mapping inline: a cached frame costs no time,
 //! which would change how far a mapping thread falls behind.
 
-use std::collections::hash_map::DefaultHasher;
 use std::collections::HashMap;
-use std::hash::{Hash, Hasher};
+use std::hash::Hash;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use spslam::features::pyramid::ScaleTables;
 use spslam::features::{
-    DescriptorKind, FeatureError, FeatureExtractor, FrameFeatures, GrayImageView,
+    DescriptorKind, DescriptorSet, FeatureError, FeatureExtractor, FrameFeatures, GrayImageView,
+    Keypoint, StageTimings,
 };
+
+use super::disk_cache::{self, Reader, Writer};
 
 type Key = (u64, u64);
 
@@ -58,19 +62,98 @@ impl<E: FeatureExtractor> CachedExtractor<E> {
     }
 
     fn key(&self, image: &GrayImageView<'_>) -> Key {
-        let hash = |salt: u64| {
-            let mut h = DefaultHasher::new();
-            salt.hash(&mut h);
-            self.tag.hash(&mut h);
-            self.inner.name().hash(&mut h);
-            (image.width(), image.height()).hash(&mut h);
+        disk_cache::key(|h| {
+            self.tag.hash(h);
+            self.inner.name().hash(h);
+            (image.width(), image.height()).hash(h);
             for y in 0..image.height() {
-                image.row(y).hash(&mut h);
+                image.row(y).hash(h);
             }
-            h.finish()
-        };
-        (hash(0x5eed_0001), hash(0x5eed_0002))
+        })
     }
+}
+
+const DISK_KIND: &str = "features";
+
+fn encode(features: &FrameFeatures) -> Vec<u8> {
+    let mut w = Writer::default();
+    w.u64(features.keypoints.len() as u64);
+    for k in &features.keypoints {
+        for v in [k.x, k.y, k.size, k.angle, k.response] {
+            w.f32(v);
+        }
+        w.u64(k.octave as u32 as u64);
+    }
+    match &features.descriptors {
+        DescriptorSet::Float { dim, data } => {
+            w.u64(0);
+            w.u64(*dim as u64);
+            w.f32s(data);
+        }
+        DescriptorSet::Binary { data } => {
+            w.u64(1);
+            w.bytes(data.as_flattened());
+        }
+    }
+    let t = &features.timings;
+    for v in [
+        t.preprocess_ms,
+        t.inference_ms,
+        t.decode_nms_ms,
+        t.anms_ms,
+        t.descriptors_ms,
+        t.total_ms,
+    ] {
+        w.f64(v);
+    }
+    w.0
+}
+
+fn decode(bytes: &[u8]) -> Option<FrameFeatures> {
+    let mut r = Reader(bytes);
+    let n = usize::try_from(r.u64()?).ok()?;
+    let keypoints = (0..n)
+        .map(|_| {
+            Some(Keypoint {
+                x: r.f32()?,
+                y: r.f32()?,
+                size: r.f32()?,
+                angle: r.f32()?,
+                response: r.f32()?,
+                octave: u32::try_from(r.u64()?).ok()? as i32,
+            })
+        })
+        .collect::<Option<Vec<_>>>()?;
+    let descriptors = match r.u64()? {
+        0 => DescriptorSet::Float {
+            dim: usize::try_from(r.u64()?).ok()?,
+            data: r.f32s()?,
+        },
+        1 => {
+            let bytes = r.bytes()?;
+            let (rows, rest) = bytes.as_chunks();
+            if !rest.is_empty() {
+                return None;
+            }
+            DescriptorSet::Binary {
+                data: rows.to_vec(),
+            }
+        }
+        _ => return None,
+    };
+    let timings = StageTimings {
+        preprocess_ms: r.f64()?,
+        inference_ms: r.f64()?,
+        decode_nms_ms: r.f64()?,
+        anms_ms: r.f64()?,
+        descriptors_ms: r.f64()?,
+        total_ms: r.f64()?,
+    };
+    r.is_done().then_some(FrameFeatures {
+        keypoints,
+        descriptors,
+        timings,
+    })
 }
 
 impl<E: FeatureExtractor> FeatureExtractor for CachedExtractor<E> {
@@ -88,7 +171,14 @@ impl<E: FeatureExtractor> FeatureExtractor for CachedExtractor<E> {
         if let Some(features) = cached {
             return Ok(features.as_ref().clone());
         }
-        let features = self.inner.extract(image)?;
+        let features = match disk_cache::load(DISK_KIND, key).and_then(|b| decode(&b)) {
+            Some(features) => features,
+            None => {
+                let features = self.inner.extract(image)?;
+                disk_cache::store(DISK_KIND, key, &encode(&features));
+                features
+            }
+        };
         if let Ok(mut c) = cache().lock() {
             c.features.insert(key, Arc::new(features.clone()));
         }

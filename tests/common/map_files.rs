@@ -7,7 +7,7 @@ use spslam::settings::ExtractorSettings;
 use spslam::system::SlamSystem;
 use spslam::tracking::Frontend;
 
-use super::synthetic_slam::{images, orb_slam, rig_of, small_sequence};
+use super::synthetic_slam::{cached_images, orb_slam, rig_of, small_sequence};
 
 /// ORB stereo SLAM over `frames` frames of the loop scene, finished.
 pub fn orb_system(frames: usize) -> SlamSystem {
@@ -27,7 +27,7 @@ pub fn superpoint_system(frames: usize, features: usize) -> SlamSystem {
         ..ExtractorSettings::default()
     };
     let config = settings.superpoint_config(1, 1);
-    let sp = || Box::new(super::extractor(config.clone()));
+    let sp = || Box::new(super::cached_extractor(config.clone()));
     let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     run(&mut slam, &sequence);
     slam
@@ -35,7 +35,7 @@ pub fn superpoint_system(frames: usize, features: usize) -> SlamSystem {
 
 fn run(slam: &mut SlamSystem, sequence: &spslam::dataset::synthetic::SyntheticSequence) {
     for i in 0..sequence.len() {
-        let (t, l, r) = images(sequence, i);
+        let (t, l, r) = cached_images(sequence, i);
         slam.process(i, t, l.view(), r.view())
             .unwrap_or_else(|e| panic!("frame {i}: {e}"));
     }

@@ -147,7 +147,7 @@ pub fn run_sensor(
     let first_inverse = sequence.pose(0).inverse();
     let (mut truth, mut timestamps) = (Vec::new(), Vec::new());
     for i in 0..sequence.len() {
-        let frame = sequence.render(i, sensor == Sensor::Rgbd);
+        let frame = super::synthetic_slam::rendered(sequence, i, sensor == Sensor::Rgbd);
         let image = |data: &[u8]| {
             GrayImage::from_vec(data.to_vec(), frame.width, frame.height)
                 .unwrap_or_else(|e| panic!("{e}"))

@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
 use spslam::camera::CameraRig;
-use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticSequence};
+use spslam::dataset::synthetic::{SceneName, SyntheticConfig, SyntheticFrame, SyntheticSequence};
 use spslam::features::{GrayImage, OrbConfig, OrbExtractor};
 use spslam::settings::SlamSettings;
 use spslam::system::SlamSystem;
@@ -57,16 +57,56 @@ pub fn images(sequence: &SyntheticSequence, index: usize) -> (f64, GrayImage, Gr
     let image = |data: Vec<u8>| {
         GrayImage::from_vec(data, frame.width, frame.height).unwrap_or_else(|e| panic!("{e}"))
     };
-    (
-        frame.timestamp,
-        image(frame.left.clone()),
-        image(frame.right.clone()),
-    )
+    (frame.timestamp, image(frame.left), image(frame.right))
 }
 
-/// [`images`] through a process-wide cache, for tests that run over the
-/// same frames several times (rendering a 480×360 stereo frame takes about
-/// 90 ms). Keyed by the sequence's whole configuration and the index.
+/// `sequence.render(index, with_depth)`, read back from the disk cache
+/// when another test of the run rendered it ([`super::disk_cache`];
+/// rendering is deterministic: the same configuration and index give the
+/// same pixels).
+pub fn rendered(sequence: &SyntheticSequence, index: usize, with_depth: bool) -> SyntheticFrame {
+    use super::disk_cache::{self, Reader, Writer};
+    use std::hash::Hash;
+    const KIND: &str = "frame";
+    let key = disk_cache::key(|h| {
+        format!("{:?}", sequence.config()).hash(h);
+        (index, with_depth).hash(h);
+    });
+    let decode = |bytes: &[u8]| {
+        let mut r = Reader(bytes);
+        let frame = SyntheticFrame {
+            index,
+            timestamp: r.f64()?,
+            pose: sequence.pose(index),
+            width: usize::try_from(r.u64()?).ok()?,
+            height: usize::try_from(r.u64()?).ok()?,
+            left: r.bytes()?,
+            right: r.bytes()?,
+            depth: r.f32s()?,
+        };
+        r.is_done().then_some(frame)
+    };
+    if let Some(frame) = disk_cache::load(KIND, key).and_then(|b| decode(&b)) {
+        return frame;
+    }
+    let frame = sequence.render(index, with_depth);
+    let mut w = Writer::default();
+    w.f64(frame.timestamp);
+    w.u64(frame.width as u64);
+    w.u64(frame.height as u64);
+    w.bytes(&frame.left);
+    w.bytes(&frame.right);
+    w.f32s(&frame.depth);
+    disk_cache::store(KIND, key, &w.0);
+    frame
+}
+
+/// [`images`] through a process-wide cache and the run's disk cache
+/// ([`rendered`]), for runs with local mapping inline that see frames other
+/// runs of the test suite see too (rendering a 480×360 stereo frame takes
+/// about 90 ms). Keyed by the sequence's whole configuration and the index.
+/// Not for runs with a mapping thread: a frame read back costs no time,
+/// which would change how far the thread falls behind.
 pub fn cached_images(sequence: &SyntheticSequence, index: usize) -> (f64, GrayImage, GrayImage) {
     type Frames = Mutex<HashMap<(String, usize), Arc<(f64, GrayImage, GrayImage)>>>;
     static FRAMES: OnceLock<Frames> = OnceLock::new();
@@ -76,7 +116,12 @@ pub fn cached_images(sequence: &SyntheticSequence, index: usize) -> (f64, GrayIm
     let frame = match cached {
         Some(frame) => frame,
         None => {
-            let frame = Arc::new(images(sequence, index));
+            let frame = rendered(sequence, index, false);
+            let image = |data: Vec<u8>| {
+                GrayImage::from_vec(data, frame.width, frame.height)
+                    .unwrap_or_else(|e| panic!("{e}"))
+            };
+            let frame = Arc::new((frame.timestamp, image(frame.left), image(frame.right)));
             if let Ok(mut f) = frames.lock() {
                 f.insert(key, frame.clone());
             }
