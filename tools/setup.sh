@@ -186,6 +186,8 @@ check_pinned model "$MODEL" "$PINNED_SHA_FILE"
 # quantize_int8 STEP MODEL WEIGHTS [QUANTIZER ARGS...]: MODEL written by the
 # quantiser if missing or older than the quantiser, the exporter, the weights
 # or their provenance sidecar.
+CALIBRATION_DIR="$(mktemp -d -t spslam-calibration.XXXXXX)"
+trap 'rm -rf "$CALIBRATION_DIR"' EXIT
 quantize_int8() {
     local name="$1" model="$2" weights="$3" out
     shift 3
@@ -197,6 +199,9 @@ quantize_int8() {
     mkdir -p "$(dirname "$model")"
     local data_args=()
     [[ -n "${SPSLAM_DATA:-}" ]] && data_args=(--data "$SPSLAM_DATA")
+    # The calibration (most of the minute) is shared by a weights file's two
+    # variants within this run; the pinned checksums check both outputs.
+    data_args+=(--ranges-cache "$CALIBRATION_DIR/$(basename "$weights").json")
     out="$("$PY" "$QUANTIZER" "$@" --weights "$weights" --out "$model.tmp.$$" "${data_args[@]}")" \
         || { rm -f "$model.tmp.$$"; die "quantisation of $model failed"; }
     mv -f "$model.tmp.$$" "$model"
