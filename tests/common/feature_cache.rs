@@ -75,15 +75,12 @@ impl<E: FeatureExtractor> CachedExtractor<E> {
 
 const DISK_KIND: &str = "features";
 
+/// Keypoints and timings through their serde derives (postcard, as the
+/// map files); the descriptor block, which has none, after them.
 fn encode(features: &FrameFeatures) -> Vec<u8> {
+    let head = postcard::to_stdvec(&(&features.keypoints, &features.timings)).unwrap_or_default();
     let mut w = Writer::default();
-    w.u64(features.keypoints.len() as u64);
-    for k in &features.keypoints {
-        for v in [k.x, k.y, k.size, k.angle, k.response] {
-            w.f32(v);
-        }
-        w.u64(k.octave as u32 as u64);
-    }
+    w.bytes(&head);
     match &features.descriptors {
         DescriptorSet::Float { dim, data } => {
             w.u64(0);
@@ -95,35 +92,13 @@ fn encode(features: &FrameFeatures) -> Vec<u8> {
             w.bytes(data.as_flattened());
         }
     }
-    let t = &features.timings;
-    for v in [
-        t.preprocess_ms,
-        t.inference_ms,
-        t.decode_nms_ms,
-        t.anms_ms,
-        t.descriptors_ms,
-        t.total_ms,
-    ] {
-        w.f64(v);
-    }
     w.0
 }
 
 fn decode(bytes: &[u8]) -> Option<FrameFeatures> {
     let mut r = Reader(bytes);
-    let n = usize::try_from(r.u64()?).ok()?;
-    let keypoints = (0..n)
-        .map(|_| {
-            Some(Keypoint {
-                x: r.f32()?,
-                y: r.f32()?,
-                size: r.f32()?,
-                angle: r.f32()?,
-                response: r.f32()?,
-                octave: u32::try_from(r.u64()?).ok()? as i32,
-            })
-        })
-        .collect::<Option<Vec<_>>>()?;
+    let (keypoints, timings): (Vec<Keypoint>, StageTimings) =
+        postcard::from_bytes(&r.bytes()?).ok()?;
     let descriptors = match r.u64()? {
         0 => DescriptorSet::Float {
             dim: usize::try_from(r.u64()?).ok()?,
@@ -140,14 +115,6 @@ fn decode(bytes: &[u8]) -> Option<FrameFeatures> {
             }
         }
         _ => return None,
-    };
-    let timings = StageTimings {
-        preprocess_ms: r.f64()?,
-        inference_ms: r.f64()?,
-        decode_nms_ms: r.f64()?,
-        anms_ms: r.f64()?,
-        descriptors_ms: r.f64()?,
-        total_ms: r.f64()?,
     };
     r.is_done().then_some(FrameFeatures {
         keypoints,
