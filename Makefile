@@ -97,8 +97,7 @@ evaluate: build
 lint: setup
 	$(CARGO) fmt --all --check
 	$(CARGO) fmt --check --manifest-path fuzz/Cargo.toml
-	$(CARGO) clippy --release --all-targets -- -D warnings
-	$(CARGO) clippy --release -p spslam-python -- -D warnings
+	$(CARGO) clippy --release --workspace --all-targets -- -D warnings
 
 # Every test in its own process, two at a time, the longest first (about
 # half the time of `cargo test`, which runs one binary after another);

@@ -223,3 +223,43 @@ fn spslam_synth_writes_a_sequence_and_rejects_bad_arguments() {
     }
     std::fs::remove_dir_all(&root).unwrap();
 }
+
+/// On the loop in its own light the frame count only ends a sequence:
+/// frame `i` of a short run, of a long one and of one lap are the same
+/// pixels, pose and time. (The tests' frame cache,
+/// `common::synthetic_slam::pixel_config`, lets runs of different lengths
+/// share their frames on this; the open scenes build a street as long as
+/// the run, so their frames differ, as this test also checks.)
+#[test]
+fn the_frame_count_does_not_change_a_loop_frame_without_a_condition() {
+    let mut open = small(SceneName::Straight, 3, 6);
+    let open_short = SyntheticSequence::new(open.clone())
+        .unwrap()
+        .render(0, false);
+    open.frames = Some(500);
+    let open_long = SyntheticSequence::new(open).unwrap().render(0, false);
+    assert_ne!(
+        open_short.left, open_long.left,
+        "the straight street no longer grows with the run: the cache key may drop its frame count"
+    );
+    let scene = SceneName::Loop;
+    let short = SyntheticSequence::new(small(scene, 3, 6)).unwrap();
+    let mut long_config = small(scene, 3, 6);
+    long_config.frames = Some(500);
+    let long = SyntheticSequence::new(long_config).unwrap();
+    let mut lap_config = small(scene, 3, 6);
+    lap_config.frames = None;
+    let lap = SyntheticSequence::new(lap_config).unwrap();
+    for index in [0, 5] {
+        let a = short.render(index, false);
+        for other in [&long, &lap] {
+            let b = other.render(index, false);
+            assert_eq!(a.timestamp, b.timestamp, "{scene:?} frame {index}");
+            assert_eq!(a.pose, b.pose, "{scene:?} frame {index}");
+            assert!(
+                a.left == b.left && a.right == b.right,
+                "{scene:?} frame {index}: the pixels depend on the frame count"
+            );
+        }
+    }
+}

@@ -68,6 +68,24 @@ def list_tests(executable):
     return [line[: -len(": test")] for line in proc.stdout.splitlines() if line.endswith(": test")]
 
 
+def cache_summary():
+    """What the disk cache's computed.log says: entries computed, and how
+    many of them more than once (two tests that did the same work)."""
+    try:
+        lines = (CACHE / "computed.log").read_text().splitlines()
+    except OSError:
+        return "disk cache: nothing computed"
+    by_kind = {}
+    for line in lines:
+        parts = line.split()
+        if len(parts) == 3:
+            by_kind.setdefault(parts[0], []).append(parts[1])
+    text = []
+    for kind, keys in sorted(by_kind.items()):
+        text.append(f"{kind}: {len(keys)} computed, {len(keys) - len(set(keys))} of them again")
+    return "disk cache: " + "; ".join(text)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--jobs", type=int, default=2, help="tests at a time (default 2)")
@@ -127,6 +145,7 @@ def main():
     print(f"[tests] the slowest of {len(results)}:")
     for name, (_, seconds) in slowest:
         print(f"    {seconds:7.1f} s  {name}")
+    print(f"[tests] {cache_summary()}")
     print(f"[tests] {len(results) - len(failed)} passed, {len(failed)} failed, doc-tests {'ok' if doc.returncode == 0 else 'FAILED'}; {wall:.0f} s wall")
     if args.write_durations:
         DURATIONS.write_text(

@@ -138,14 +138,9 @@ impl<E: FeatureExtractor> FeatureExtractor for CachedExtractor<E> {
         if let Some(features) = cached {
             return Ok(features.as_ref().clone());
         }
-        let features = match disk_cache::load(DISK_KIND, key).and_then(|b| decode(&b)) {
-            Some(features) => features,
-            None => {
-                let features = self.inner.extract(image)?;
-                disk_cache::store(DISK_KIND, key, &encode(&features));
-                features
-            }
-        };
+        let inner = &mut self.inner;
+        let features =
+            disk_cache::get_or_compute(DISK_KIND, key, decode, encode, || inner.extract(image))?;
         if let Ok(mut c) = cache().lock() {
             c.features.insert(key, Arc::new(features.clone()));
         }
