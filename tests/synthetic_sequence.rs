@@ -252,6 +252,13 @@ fn the_frame_count_does_not_change_a_loop_frame_without_a_condition() {
     let lap = SyntheticSequence::new(lap_config).unwrap();
     for index in [0, 5] {
         let a = short.render(index, false);
+        let with_depth = short.render(index, true);
+        assert!(
+            a.left == with_depth.left
+                && a.right == with_depth.right
+                && !with_depth.depth.is_empty(),
+            "{scene:?} frame {index}: rendering the depth map changes the images"
+        );
         for other in [&long, &lap] {
             let b = other.render(index, false);
             assert_eq!(a.timestamp, b.timestamp, "{scene:?} frame {index}");
