@@ -152,6 +152,12 @@ fn read(map: &SharedMap) -> Result<RwLockReadGuard<'_, Map>, SlamError> {
     map.read().map_err(|_| SlamError::PoisonedMap)
 }
 
+/// [`Map::check_invariants`], its violation named by the step that ran last.
+fn check_map(map: &Map, stage: &'static str) -> Result<(), SlamError> {
+    map.check_invariants()
+        .map_err(|source| SlamError::MapInvariant { stage, source })
+}
+
 fn write(map: &SharedMap) -> Result<RwLockWriteGuard<'_, Map>, SlamError> {
     map.write().map_err(|_| SlamError::PoisonedMap)
 }
@@ -247,8 +253,7 @@ impl LocalMapper {
     /// The invariant check after one step, when asked for each step.
     fn checked(&self, map: &Map, stage: &'static str) -> Result<(), SlamError> {
         if self.check_invariants && self.check_invariants_each_step {
-            map.check_invariants()
-                .map_err(|source| SlamError::MapInvariant { stage, source })?;
+            check_map(map, stage)?;
         }
         Ok(())
     }
@@ -257,10 +262,7 @@ impl LocalMapper {
     /// asked for each step.
     fn checked_keyframe(&self, map: &SharedMap) -> Result<(), SlamError> {
         if self.check_invariants && !self.check_invariants_each_step {
-            let stage = "local mapping";
-            read(map)?
-                .check_invariants()
-                .map_err(|source| SlamError::MapInvariant { stage, source })?;
+            check_map(&*read(map)?, "local mapping")?;
         }
         Ok(())
     }

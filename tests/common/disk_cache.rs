@@ -27,7 +27,7 @@ use std::time::{Duration, Instant};
 /// How long a test waits for an entry another process claimed before it
 /// computes the entry itself (a 480×360 SuperPoint extraction takes well
 /// under a second; a render about 0.1 s).
-pub const CLAIM_PATIENCE: Duration = Duration::from_secs(120);
+const CLAIM_PATIENCE: Duration = Duration::from_secs(120);
 
 /// Two independent 64-bit hashes of what `feed` writes (a collision of
 /// both is not a concern at the tests' few thousand entries).

@@ -147,10 +147,7 @@ pub fn run_sensor(
     let first_inverse = sequence.pose(0).inverse();
     let (mut truth, mut timestamps) = (Vec::new(), Vec::new());
     for i in 0..sequence.len() {
-        // Always with the depth map: the images are the same either way
-        // (tests/synthetic_sequence.rs) and cost the same to render, so the
-        // stereo and RGB-D runs of one sequence share one render per frame.
-        let frame = super::synthetic_slam::rendered(sequence, i, true);
+        let frame = super::synthetic_slam::rendered(sequence, i, sensor == Sensor::Rgbd);
         let image = |data: &[u8]| {
             GrayImage::from_vec(data.to_vec(), frame.width, frame.height)
                 .unwrap_or_else(|e| panic!("{e}"))

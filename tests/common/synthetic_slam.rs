@@ -112,13 +112,10 @@ pub fn rendered(sequence: &SyntheticSequence, index: usize, with_depth: bool) ->
         w.f32s(&frame.depth);
         w.0
     };
-    let rendered: Result<_, std::convert::Infallible> =
-        disk_cache::get_or_compute(KIND, key, decode, encode, || {
-            Ok(sequence.render(index, with_depth))
-        });
-    match rendered {
-        Ok(frame) => frame,
-    }
+    let Ok(frame) = disk_cache::get_or_compute(KIND, key, decode, encode, || {
+        Ok::<_, std::convert::Infallible>(sequence.render(index, with_depth))
+    });
+    frame
 }
 
 /// [`images`] through a process-wide cache and the run's disk cache
