@@ -51,7 +51,9 @@ use euroc_loop_pair::{
     OPENVINS_GT,
 };
 use spslam::eval::read_tum;
-use spslam::loop_closing::{verify_candidate, LoopDetector, LoopThresholds, Verification};
+use spslam::loop_closing::{
+    verify_candidate, verify_with_counts, LoopDetector, LoopStage, LoopThresholds, Verification,
+};
 use spslam::map::KeyFrameId;
 use spslam::place::{default_codebook_for, Codebook};
 use spslam::settings::DEFAULT_SUPERPOINT_LEVELS;
@@ -177,6 +179,45 @@ fn loop_pair_is_verified_with_the_ground_truth_relative_pose() {
     assert!(
         rotation_error_original <= MAX_ROTATION_ERROR_ORIGINAL_DEG,
         "rotation error {rotation_error_original}° against pairs.txt"
+    );
+
+    // The stage counts: a check that passes counts every stage; a check
+    // that stops at the descriptor stage counts only that one, unless it is
+    // asked to go on, and then it counts what the passing check counted
+    // (no count depends on a threshold) and gives the same verdict.
+    let check = |th: &LoopThresholds| {
+        verify_with_counts(map, b, map, a, &rig.rig, th)
+            .unwrap_or_else(|e| panic!("verify_with_counts: {e}"))
+    };
+    let (passing, all) = check(&th);
+    assert!(matches!(passing, Verification::Verified(ref p) if p.inliers == v.inliers));
+    assert_eq!(all.reprojection_inliers, Some(v.inliers));
+    assert_eq!(all.first_failing(&th), None);
+    let strict = LoopThresholds {
+        min_matches: all.descriptor_matches + 1,
+        ..th
+    };
+    let (stopped, first) = check(&strict);
+    assert!(matches!(
+        stopped,
+        Verification::Rejected { stage: LoopStage::DescriptorMatches, count } if count == all.descriptor_matches
+    ));
+    assert_eq!(first.descriptor_matches, all.descriptor_matches);
+    assert_eq!(first.ransac_inliers, None);
+    let (recorded_verdict, recorded) = check(&LoopThresholds {
+        record_every_stage: true,
+        ..strict
+    });
+    assert!(matches!(
+        recorded_verdict,
+        Verification::Rejected {
+            stage: LoopStage::DescriptorMatches,
+            ..
+        }
+    ));
+    assert_eq!(
+        recorded, all,
+        "every stage counted as the passing check did"
     );
 }
 

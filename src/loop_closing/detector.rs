@@ -28,11 +28,12 @@ use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::Se3;
 use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 
+use super::stage_counts::{CandidateCheck, LoopStage};
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::{
     candidate_group, check_candidate, confirm_with, detach_group, detach_query, CandidateGroup,
-    CheckedCandidate, LoopStage, RejectedCandidate, VerifiedLoop,
+    CheckedCandidate, RejectedCandidate, VerifiedLoop,
 };
 
 /// A loop the detector accepted: the query keyframe's pose in the loop's
@@ -77,6 +78,8 @@ pub struct DetectionOutcome {
     pub accepted: Option<AcceptedLoop>,
     /// Candidates rejected after the descriptor stage.
     pub rejected: Vec<RejectedCandidate>,
+    /// Every candidate checked, with what each stage counted.
+    pub checks: Vec<CandidateCheck>,
     /// The keyframe's global descriptor (`None` without float rows), for
     /// the merge check that may follow.
     pub descriptor: Option<Vec<f32>>,
@@ -380,7 +383,7 @@ impl LoopDetector {
                         (&detached.group, &detached.points),
                         candidate.1,
                         rig,
-                        &mut outcome.rejected,
+                        (&mut outcome.rejected, &mut outcome.checks),
                     )?;
                     match step {
                         CandidateStep::Rejected => continue,
@@ -450,13 +453,13 @@ impl LoopDetector {
         kf: KeyFrameId,
         candidate: (KeyFrameId, f32),
         rig: &CameraRig,
-        rejected: &mut Vec<RejectedCandidate>,
+        log: (&mut Vec<RejectedCandidate>, &mut Vec<CandidateCheck>),
     ) -> Result<CandidateStep, SlamError> {
         if map.keyframe(kf).is_err() || map.keyframe(candidate.0).is_err() {
             return Ok(CandidateStep::Rejected);
         }
         let group = candidate_group(map, candidate.0, self.thresholds.group_size);
-        self.check_group(map, kf, (&group, map), candidate.1, rig, rejected)
+        self.check_group(map, kf, (&group, map), candidate.1, rig, log)
     }
 
     /// Copies what the check of `candidate` for `kf` reads (`None` when
@@ -493,17 +496,18 @@ impl LoopDetector {
         (group, points_map): (&CandidateGroup, &Map),
         score: f32,
         rig: &CameraRig,
-        rejected: &mut Vec<RejectedCandidate>,
+        (rejected, checks): (&mut Vec<RejectedCandidate>, &mut Vec<CandidateCheck>),
     ) -> Result<CandidateStep, SlamError> {
         let th = self.thresholds;
         let candidate = group.candidate;
-        let checked = match check_candidate(query_map, kf, (group, points_map), score, rig, &th)? {
-            Ok(checked) => checked,
-            Err(record) => {
-                rejected.extend(record);
-                return Ok(CandidateStep::Rejected);
-            }
-        };
+        let checked =
+            match check_candidate(query_map, kf, (group, points_map), score, rig, &th, checks)? {
+                Ok(checked) => checked,
+                Err(record) => {
+                    rejected.extend(record);
+                    return Ok(CandidateStep::Rejected);
+                }
+            };
         let CheckedCandidate {
             verified,
             correction,

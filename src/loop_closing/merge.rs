@@ -25,6 +25,7 @@ use crate::optim::{LieGroup, Se3};
 use crate::place::{KeyframeDatabase, QueryOptions};
 
 use super::detector::AcceptedLoop;
+use super::stage_counts::CandidateCheck;
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
 use super::verify::RejectedCandidate;
@@ -50,6 +51,9 @@ pub struct MergeOutcome {
     pub accepted: Option<AcceptedMerge>,
     /// Candidates rejected after the descriptor stage, with their map's tag.
     pub rejected: Vec<(usize, RejectedCandidate)>,
+    /// Every candidate checked, with its map's tag and what each stage
+    /// counted.
+    pub checks: Vec<(usize, CandidateCheck)>,
 }
 
 /// The archived databases and the confirmation streak.
@@ -164,7 +168,17 @@ impl MergeDetector {
                 Some(copy) => copy,
                 None => detach_query(&*read_active()?, kf, &th),
             };
-            let checked = check_candidate(&query_map, kf, (&group, &points), score, rig, &th)?;
+            let mut checks = Vec::with_capacity(1);
+            let checked = check_candidate(
+                &query_map,
+                kf,
+                (&group, &points),
+                score,
+                rig,
+                &th,
+                &mut checks,
+            )?;
+            outcome.checks.extend(checks.into_iter().map(|c| (tag, c)));
             query_side = Some(query_map);
             let checked = match checked {
                 Ok(checked) => checked,

@@ -28,6 +28,7 @@ mod essential_graph;
 mod global_ba;
 mod merge;
 mod relocalisation;
+mod stage_counts;
 mod streak;
 mod thresholds;
 mod verify;
@@ -47,8 +48,9 @@ pub use global_ba::{
 };
 pub use merge::{AcceptedMerge, MergeDetector, MergeOutcome};
 pub use relocalisation::{DatabaseRelocaliser, RELOCALISATION_CANDIDATES};
+pub use stage_counts::{CandidateCheck, LoopStage, LoopStageCounts};
 pub use thresholds::LoopThresholds;
 pub use verify::{
-    confirm_across, confirm_with, verify_across, verify_candidate, Confirmation, LoopStage,
-    RejectedCandidate, Verification, VerifiedLoop,
+    confirm_across, confirm_with, verify_across, verify_candidate, verify_with_counts,
+    Confirmation, RejectedCandidate, Verification, VerifiedLoop,
 };

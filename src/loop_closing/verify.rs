@@ -15,25 +15,8 @@ use crate::tracking::{
     VisiblePoint,
 };
 
+use super::stage_counts::{CandidateCheck, LoopStage, LoopStageCounts};
 use super::thresholds::LoopThresholds;
-
-/// The stage at which a candidate failed.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum LoopStage {
-    /// Too few descriptor matches with the candidate group.
-    DescriptorMatches,
-    /// The RANSAC pose found too few inliers.
-    Ransac,
-    /// Too few inliers after optimising the pose on the matches.
-    PoseOptimisation,
-    /// Too few matches after the first search by projection.
-    Projection,
-    /// Too few inliers after the second search by projection.
-    Reprojection,
-    /// Verified, but not confirmed by enough keyframes.
-    Confirmation,
-}
 
 /// A candidate that passed the descriptor stage and failed later.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -90,6 +73,8 @@ pub(crate) struct CandidateGroup {
     pub(crate) keyframes: Vec<KeyFrameId>,
     /// The points they observe.
     pub(crate) points: Vec<MapPointId>,
+    /// The candidate's pose `T_cw` (`None` when culled).
+    pub(crate) candidate_pose_cw: Option<Se3>,
 }
 
 /// The candidate and its best `size` covisible keyframes, and their points.
@@ -109,6 +94,7 @@ pub(crate) fn candidate_group(map: &Map, candidate: KeyFrameId, size: usize) -> 
         candidate,
         keyframes,
         points: points.into_iter().collect(),
+        candidate_pose_cw: map.pose_cw_of(candidate).ok(),
     }
 }
 
@@ -172,13 +158,40 @@ pub fn verify_across(
     rig: &CameraRig,
     th: &LoopThresholds,
 ) -> Result<Verification, SlamError> {
+    Ok(verify_with_counts(query_map, query, map, candidate, rig, th)?.0)
+}
+
+/// [`verify_across`], with what each stage counted
+/// ([`LoopThresholds::record_every_stage`] runs every stage).
+pub fn verify_with_counts(
+    query_map: &Map,
+    query: KeyFrameId,
+    map: &Map,
+    candidate: KeyFrameId,
+    rig: &CameraRig,
+    th: &LoopThresholds,
+) -> Result<(Verification, LoopStageCounts), SlamError> {
     let group = candidate_group(map, candidate, th.group_size);
-    verify_group(query_map, query, &group, map, rig, th)
+    let check = verify_group(query_map, query, &group, map, rig, th)?;
+    Ok((check.verification, check.counts))
+}
+
+/// What one candidate's check counted, its verdict, and the query's pose
+/// at the last stage it reached.
+struct GroupCheck {
+    counts: LoopStageCounts,
+    verification: Verification,
+    /// The candidate camera's centre in the query camera's frame at that pose.
+    candidate_in_query: Option<[f64; 3]>,
 }
 
 /// The check itself: the query keyframe (in `query_map`) against `group`,
 /// whose points `points_map` holds (the candidate's map, or a copy of its
-/// points: [`detach_group`]).
+/// points: [`detach_group`]). It stops at the first stage that fails its
+/// threshold, unless `th.record_every_stage` asks it to go on as far as
+/// the geometry allows (a RANSAC pose is needed past that stage); the
+/// verdict comes from the counts either way
+/// ([`LoopStageCounts::first_failing`]).
 fn verify_group(
     query_map: &Map,
     query: KeyFrameId,
@@ -186,41 +199,110 @@ fn verify_group(
     points_map: &Map,
     rig: &CameraRig,
     th: &LoopThresholds,
-) -> Result<Verification, SlamError> {
-    let rejected = |stage, count| Ok(Verification::Rejected { stage, count });
+) -> Result<GroupCheck, SlamError> {
+    let mut counts = LoopStageCounts::default();
+    let mut pose = None;
+    run_stages(
+        query_map,
+        query,
+        group,
+        points_map,
+        rig,
+        th,
+        &mut counts,
+        &mut pose,
+    )?;
+    let candidate_in_query =
+        pose.as_ref()
+            .zip(group.candidate_pose_cw.as_ref())
+            .map(|((query_cw, _), candidate_cw)| {
+                let t = query_cw.compose(&candidate_cw.inverse()).translation;
+                [t.x, t.y, t.z]
+            });
+    let verification = match counts.first_failing(th) {
+        Some((stage, count)) => Verification::Rejected { stage, count },
+        None => match pose {
+            Some((pose_cw, matches)) => Verification::Verified(VerifiedLoop {
+                candidate: group.candidate,
+                group: group.keyframes.clone(),
+                pose_cw,
+                matches,
+                inliers: counts.reprojection_inliers.unwrap_or(0),
+            }),
+            None => Verification::Rejected {
+                stage: LoopStage::Ransac,
+                count: 0,
+            },
+        },
+    };
+    Ok(GroupCheck {
+        counts,
+        verification,
+        candidate_in_query,
+    })
+}
+
+/// The query's pose `T_cw` in the candidate's frame and its matches, as
+/// the stages leave them.
+type CheckPose = Option<(Se3, Vec<Option<MapPointId>>)>;
+
+/// The stages of [`verify_group`], filling `counts` and `pose` as far as
+/// they go.
+#[allow(clippy::too_many_arguments)]
+fn run_stages(
+    query_map: &Map,
+    query: KeyFrameId,
+    group: &CandidateGroup,
+    points_map: &Map,
+    rig: &CameraRig,
+    th: &LoopThresholds,
+    counts: &mut LoopStageCounts,
+    pose: &mut CheckPose,
+) -> Result<(), SlamError> {
+    // Whether to go on after a stage: it passed, or every stage is asked for.
+    let go_on = |counts: &LoopStageCounts, stage: LoopStage| {
+        th.record_every_stage || counts.first_failing(th).is_none_or(|(s, _)| s != stage)
+    };
     let Ok(query_kf) = query_map.keyframe(query) else {
-        return rejected(LoopStage::DescriptorMatches, 0);
+        return Ok(());
     };
     let (map, points, candidate) = (points_map, &group.points, group.candidate);
     let mut frame = Frame::from_keyframe(query_kf, rig);
     frame.map_points.iter_mut().for_each(|p| *p = None);
     let matches = match_descriptors(&frame, map, points, th.match_ratio)?;
-    if matches.len() < th.min_matches {
-        return rejected(LoopStage::DescriptorMatches, matches.len());
+    counts.descriptor_matches = matches.len();
+    if !go_on(counts, LoopStage::DescriptorMatches) {
+        return Ok(());
     }
     let Some(ransac) = pnp_ransac(&frame, map, &matches, rig)? else {
-        return rejected(LoopStage::Ransac, 0);
+        return Ok(());
     };
-    let explained = ransac.inliers as f32 / matches.len() as f32;
-    if ransac.inliers < th.min_ransac_inliers || explained < th.min_ransac_inlier_ratio {
-        return rejected(LoopStage::Ransac, ransac.inliers);
-    }
+    counts.ransac_inliers = Some(ransac.inliers);
     frame.pose_cw = ransac.pose_cw;
     for (i, p) in &matches {
         frame.map_points[*i] = Some(*p);
     }
+    *pose = Some((frame.pose_cw, frame.map_points.clone()));
+    if !go_on(counts, LoopStage::Ransac) {
+        return Ok(());
+    }
     let optimised = refine_pose(&mut frame, map, rig)?;
-    if optimised < th.min_optimised_inliers {
-        return rejected(LoopStage::PoseOptimisation, optimised);
+    counts.optimised_inliers = Some(optimised);
+    *pose = Some((frame.pose_cw, frame.map_points.clone()));
+    if !go_on(counts, LoopStage::PoseOptimisation) {
+        return Ok(());
     }
     let found = optimised + search(&mut frame, map, points, rig, 10.0)?;
-    if found < th.min_projection_matches {
-        return rejected(LoopStage::Projection, found);
+    counts.projection_matches = Some(found);
+    if !go_on(counts, LoopStage::Projection) {
+        return Ok(());
     }
     refine_pose(&mut frame, map, rig)?;
     search(&mut frame, map, points, rig, 3.0)?;
     let matched = frame.tracked_count();
     let inliers = refine_pose(&mut frame, map, rig)?;
+    counts.reprojection_inliers = Some(inliers);
+    *pose = Some((frame.pose_cw, frame.map_points.clone()));
     tracing::debug!(
         query = query.0,
         candidate = candidate.0,
@@ -232,16 +314,7 @@ fn verify_group(
         inliers,
         "loop candidate checked"
     );
-    if inliers < th.min_reprojection_inliers {
-        return rejected(LoopStage::Reprojection, inliers);
-    }
-    Ok(Verification::Verified(VerifiedLoop {
-        candidate,
-        group: group.keyframes.clone(),
-        pose_cw: frame.pose_cw,
-        matches: frame.map_points,
-        inliers,
-    }))
+    Ok(())
 }
 
 /// What a keyframe moved by the loop's correction sees of the group.
@@ -319,7 +392,7 @@ pub(crate) struct CheckedCandidate {
 /// `points_map`) for keyframe `query` (in `query_map`; for a loop, both
 /// the same map or copies of it: [`detach_query`], [`detach_group`]),
 /// then the confirmation by the query's best covisible keyframes outside
-/// the candidate's group.
+/// the candidate's group. Every check is recorded in `checks`.
 /// `Err(Some(record))` for a candidate rejected after the descriptor
 /// stage (`score`: its retrieval similarity), `Err(None)` for one rejected
 /// at it (not worth recording).
@@ -330,9 +403,23 @@ pub(crate) fn check_candidate(
     score: f32,
     rig: &CameraRig,
     th: &LoopThresholds,
+    checks: &mut Vec<CandidateCheck>,
 ) -> Result<Result<CheckedCandidate, Option<RejectedCandidate>>, SlamError> {
     let candidate = group.candidate;
-    let verified = match verify_group(query_map, query, group, points_map, rig, th)? {
+    let check = verify_group(query_map, query, group, points_map, rig, th)?;
+    let rejected_at = match &check.verification {
+        Verification::Verified(_) => None,
+        Verification::Rejected { stage, .. } => Some(*stage),
+    };
+    checks.push(CandidateCheck {
+        query,
+        candidate,
+        score,
+        counts: check.counts,
+        rejected_at,
+        candidate_in_query: check.candidate_in_query,
+    });
+    let verified = match check.verification {
         Verification::Verified(v) => v,
         Verification::Rejected { stage, count } => {
             let record = (stage != LoopStage::DescriptorMatches).then_some(RejectedCandidate {

@@ -40,6 +40,9 @@ pub struct SystemOptions {
     /// The VLAD codebook; `None` is the one shipped for the model
     /// ([`default_codebook_for`]).
     pub codebook: Option<PathBuf>,
+    /// Run every stage of each loop and merge candidate's check and
+    /// record the counts ([`LoopThresholds::record_every_stage`]).
+    pub record_loop_stages: bool,
 }
 
 impl Default for SystemOptions {
@@ -50,6 +53,7 @@ impl Default for SystemOptions {
             levels: None,
             loop_closing: true,
             codebook: None,
+            record_loop_stages: false,
         }
     }
 }
@@ -168,7 +172,11 @@ pub fn assemble_system(
                 path: path.clone(),
                 source,
             })?;
-        system.enable_loop_closing(Arc::new(codebook.vlad), LoopThresholds::default())?;
+        let thresholds = LoopThresholds {
+            record_every_stage: options.record_loop_stages,
+            ..LoopThresholds::default()
+        };
+        system.enable_loop_closing(Arc::new(codebook.vlad), thresholds)?;
         codebook_hash = file_fingerprint(&path);
     }
     Ok(AssembledSystem {

@@ -18,8 +18,9 @@ use std::collections::BTreeMap;
 
 use crate::error::MapContext;
 use crate::loop_closing::{
-    correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, LoopCorrection, LoopDetector,
-    LoopStage, LoopThresholds, MergeDetector, SharedKeyframeDatabase,
+    correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, CandidateCheck, LoopCorrection,
+    LoopDetector, LoopStage, LoopStageCounts, LoopThresholds, MergeDetector,
+    SharedKeyframeDatabase,
 };
 use crate::map::{KeyFrameId, Map, SharedMap};
 use crate::optim::{LieGroup, Se3};
@@ -86,6 +87,50 @@ pub struct RejectedLoopRecord {
     pub other_map: Option<usize>,
 }
 
+/// One loop or merge candidate's check, verified or not, with what each
+/// stage counted (ORB-SLAM3's stages; `spslam run --record-loop-stages`
+/// runs every stage): the data of the loop check's precision–recall curves.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct LoopCandidateRecord {
+    /// Input frame of the keyframe that looked for a loop.
+    pub query_frame: usize,
+    /// Input frame of the candidate keyframe.
+    pub candidate_frame: usize,
+    /// For a merge candidate, the older atlas map it is in.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub other_map: Option<usize>,
+    /// Its global-descriptor similarity.
+    pub score: f32,
+    /// What each stage of the check counted.
+    pub counts: LoopStageCounts,
+    /// The stage that rejected it (`None`: every geometric stage passed).
+    pub rejected_at: Option<LoopStage>,
+    /// The candidate camera's centre in the query camera's frame at the
+    /// last pose the check reached (metres), for a ground truth to judge.
+    pub candidate_in_query: Option<[f64; 3]>,
+}
+
+impl LoopCandidateRecord {
+    /// The record of `check`, whose keyframes are in `query_map` and
+    /// `candidate_map`.
+    fn new(
+        check: &CandidateCheck,
+        query_map: &Map,
+        candidate_map: &Map,
+        other_map: Option<usize>,
+    ) -> Self {
+        Self {
+            query_frame: frame_of(query_map, check.query),
+            candidate_frame: frame_of(candidate_map, check.candidate),
+            other_map,
+            score: check.score,
+            counts: check.counts,
+            rejected_at: check.rejected_at,
+            candidate_in_query: check.candidate_in_query,
+        }
+    }
+}
+
 /// What the check of one keyframe accepted.
 #[derive(Debug, Clone)]
 pub(crate) enum Detection {
@@ -110,6 +155,8 @@ pub(crate) struct DetectStep {
     pub(crate) detection: Option<Detection>,
     /// Candidates rejected after the descriptor stage.
     pub(crate) rejected: Vec<RejectedLoopRecord>,
+    /// Every candidate checked.
+    pub(crate) candidates: Vec<LoopCandidateRecord>,
 }
 
 /// Every loop, merge and rejected candidate of a run, in order.
@@ -118,6 +165,25 @@ pub(crate) struct LoopLog {
     pub(crate) loops: Vec<LoopRecord>,
     pub(crate) merges: Vec<MergeRecord>,
     pub(crate) rejected: Vec<RejectedLoopRecord>,
+    /// Every candidate's check, kept only when asked for
+    /// ([`LoopThresholds::record_every_stage`]): a long run would otherwise
+    /// grow it without bound.
+    pub(crate) candidates: Vec<LoopCandidateRecord>,
+    pub(crate) keep_candidates: bool,
+}
+
+impl LoopLog {
+    /// Keeps what one detection step recorded of its candidates.
+    pub(crate) fn record(
+        &mut self,
+        rejected: Vec<RejectedLoopRecord>,
+        candidates: Vec<LoopCandidateRecord>,
+    ) {
+        self.rejected.extend(rejected);
+        if self.keep_candidates {
+            self.candidates.extend(candidates);
+        }
+    }
 }
 
 /// The input frame of a keyframe (live or not: 0 when unknown).
@@ -206,6 +272,10 @@ impl LoopClosingStage {
         let read = || map.read().map_err(|_| SlamError::PoisonedMap);
         let outcome = self.detector.process_with(read, kf, rig)?;
         let map = map.read().map_err(|_| SlamError::PoisonedMap)?;
+        for c in &outcome.checks {
+            step.candidates
+                .push(LoopCandidateRecord::new(c, &map, &map, None));
+        }
         for r in outcome.rejected {
             step.rejected.push(RejectedLoopRecord {
                 query_frame: frame_of(&map, r.query),
@@ -239,6 +309,13 @@ impl LoopClosingStage {
             .merger
             .process(read, kf, &descriptor, read_other, rig)?;
         let map = read()?;
+        for (tag, c) in &outcome.checks {
+            if let Some(other) = read_other(*tag) {
+                let other = other?;
+                step.candidates
+                    .push(LoopCandidateRecord::new(c, &map, &other, Some(*tag)));
+            }
+        }
         for (tag, r) in outcome.rejected {
             let candidate_frame = match read_other(tag) {
                 Some(other) => frame_of(&*other?, r.candidate),

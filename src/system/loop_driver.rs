@@ -13,7 +13,7 @@ use crate::place::GlobalDescriptor;
 
 use super::atlas::MapIndex;
 use super::loop_closing_stage::{
-    Detection, LoopClosingStage, LoopRecord, MergeRecord, RejectedLoopRecord,
+    Detection, LoopCandidateRecord, LoopClosingStage, LoopRecord, MergeRecord, RejectedLoopRecord,
 };
 use super::loop_closing_thread::{AtlasView, LoopClosingThread, LoopFinding};
 use super::slam_system::{LoopClosing, Mapping};
@@ -36,6 +36,7 @@ impl SlamSystem {
         descriptor: Arc<dyn GlobalDescriptor>,
         thresholds: LoopThresholds,
     ) -> Result<(), SlamError> {
+        self.loop_log.keep_candidates = thresholds.record_every_stage;
         let stage = LoopClosingStage::new(Arc::clone(&descriptor), thresholds)?;
         let relocaliser = DatabaseRelocaliser::new(descriptor, stage.shared_database());
         self.tracker
@@ -62,6 +63,13 @@ impl SlamSystem {
     /// were rejected later.
     pub fn rejected_loops(&self) -> &[RejectedLoopRecord] {
         &self.loop_log.rejected
+    }
+
+    /// Every loop and merge candidate checked so far, with what each stage
+    /// of its check counted (kept only with
+    /// [`LoopThresholds::record_every_stage`]; empty otherwise).
+    pub fn loop_candidates(&self) -> &[LoopCandidateRecord] {
+        &self.loop_log.candidates
     }
 
     /// The active map and the maps it may merge with.
@@ -146,7 +154,7 @@ impl SlamSystem {
             }
             let view = self.atlas_view();
             let step = stage.detect_next(&view.active, &view.others, &self.rig)?;
-            self.loop_log.rejected.extend(step.rejected);
+            self.loop_log.record(step.rejected, step.candidates);
             if let Some(detection) = step.detection {
                 self.apply_detection(stage, detection, &view)?;
             }
@@ -164,7 +172,7 @@ impl SlamSystem {
         if !findings.iter().any(LoopFinding::needs_stage) {
             for finding in findings {
                 if let Ok(step) = finding.step {
-                    self.loop_log.rejected.extend(step.rejected);
+                    self.loop_log.record(step.rejected, step.candidates);
                 }
             }
             self.loop_closing = Some(LoopClosing::Thread(thread));
@@ -190,7 +198,7 @@ impl SlamSystem {
         finding: LoopFinding,
     ) -> Result<(), SlamError> {
         let step = finding.step?;
-        self.loop_log.rejected.extend(step.rejected);
+        self.loop_log.record(step.rejected, step.candidates);
         match step.detection {
             Some(detection) => self.apply_detection(stage, detection, &finding.maps),
             None => Ok(()),

@@ -34,7 +34,7 @@ pub use assembly::{
 pub use atlas::{Atlas, AtlasMap, MapIndex};
 pub use global_ba_thread::GlobalBaHook;
 pub use local_mapping_thread::{MappingResult, MappingThread};
-pub use loop_closing_stage::{LoopRecord, MergeRecord, RejectedLoopRecord};
+pub use loop_closing_stage::{LoopCandidateRecord, LoopRecord, MergeRecord, RejectedLoopRecord};
 pub use map_files::{LoadedMapUse, MapProvenance};
 pub use records::{FrameRecord, FrameTimings, MapSummary, RelativePose, SlamSummary};
 pub use slam_system::SlamSystem;

@@ -7,6 +7,7 @@
 
 mod cases;
 mod layout;
+mod loop_check_summary;
 mod machine;
 mod place_summary;
 mod record;
@@ -207,6 +208,8 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
     } else {
         summary::markdown(&rows, &missing, &set_name)
     };
+    let loop_check_rows = loop_check_summary::collect(&layout, &run_cases, |c| list.definition(c));
+    markdown.push_str(&loop_check_summary::markdown(&loop_check_rows));
     markdown.push_str(&place_summary::markdown(&place_rows, &place_missing));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
     let summary_md = out.join("summary.md");
@@ -217,6 +220,7 @@ pub fn run_evaluate(args: EvaluateArgs) -> Result<()> {
     let json = serde_json::json!({
         "runs": rows,
         "place": place_summary::json(&place_rows),
+        "loop_check": loop_check_summary::json(&loop_check_rows),
         "missing": all_missing,
     });
     std::fs::write(&summary_json, serde_json::to_string_pretty(&json)? + "\n")

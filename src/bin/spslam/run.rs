@@ -8,6 +8,7 @@
 //! A frame that cannot be read is skipped and counted as lost (or, with
 //! `--strict`, ends the run).
 
+mod candidate_truth;
 mod euroc_layout;
 mod evaluation;
 mod frame_loop;
@@ -150,6 +151,14 @@ pub struct RunArgs {
     /// models/vlad_k64.spvlad, or models/vlad_k64_fp32.spvlad with fp32].
     #[arg(long)]
     codebook: Option<PathBuf>,
+    /// Check every loop and merge candidate through all the stages of the
+    /// check, as far as its geometry allows, even past a stage that rejects
+    /// it, and keep each stage's count in report.json's `loop_candidates`
+    /// (judged against the ground truth when there is one): the data of
+    /// `spslam evaluate`'s curves for the loop check's thresholds. The
+    /// run's loops and trajectory are the same; only the time grows.
+    #[arg(long, conflicts_with = "no_loop_closing")]
+    record_loop_stages: bool,
     /// Stop at the first frame that cannot be read instead of skipping it
     /// (the frames before it are still written; exit code 2).
     #[arg(long)]
@@ -267,6 +276,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         levels: args.levels,
         loop_closing: !args.no_loop_closing,
         codebook: args.codebook.clone(),
+        record_loop_stages: args.record_loop_stages,
     };
     let AssembledSystem {
         system: mut slam,

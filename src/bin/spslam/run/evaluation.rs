@@ -30,6 +30,8 @@ pub struct RunEvaluation {
     /// The accepted loops and merges against the ground truth (None
     /// without ground truth).
     pub links: Option<Vec<LinkTruth>>,
+    /// The ground truth the run was evaluated against.
+    pub ground_truth: Option<Trajectory>,
 }
 
 /// Two frames joined by a loop or a merge are the same place when their
@@ -72,9 +74,24 @@ fn nearest(timestamps: &[f64], t: f64) -> Option<usize> {
     })
 }
 
+/// The ground-truth row of the estimate's timestamp `t`: KITTI-layout
+/// ground truth is paired with the estimate by row (its "timestamps" are
+/// row numbers), other ground truth by time.
+pub fn ground_truth_row(
+    gt: &Trajectory,
+    estimate: &Trajectory,
+    by_index: bool,
+    t: f64,
+) -> Option<usize> {
+    if by_index {
+        nearest(&estimate.timestamps, t).filter(|&i| i < gt.len())
+    } else {
+        nearest(&gt.timestamps, t)
+    }
+}
+
 /// Each link (query, match timestamps of the estimate) against the ground
-/// truth. KITTI-layout ground truth is paired with the estimate by row
-/// (its "timestamps" are row numbers), other ground truth by time.
+/// truth ([`ground_truth_row`]).
 fn link_truth(
     gt: &Trajectory,
     estimate: &Trajectory,
@@ -82,13 +99,7 @@ fn link_truth(
     by_index: bool,
     metric: bool,
 ) -> Vec<LinkTruth> {
-    let gt_index = |t: f64| {
-        if by_index {
-            nearest(&estimate.timestamps, t).filter(|&i| i < gt.len())
-        } else {
-            nearest(&gt.timestamps, t)
-        }
-    };
+    let gt_index = |t: f64| ground_truth_row(gt, estimate, by_index, t);
     links
         .iter()
         .filter_map(|&(query_time, match_time)| {
@@ -244,6 +255,7 @@ pub fn evaluate_run(
                 drift,
                 scale_drift,
                 links: Some(links_truth),
+                ground_truth: Some(gt.clone()),
             });
         }
     };
@@ -274,6 +286,7 @@ pub fn evaluate_run(
         drift,
         scale_drift,
         links: Some(links_truth),
+        ground_truth: Some(gt.clone()),
     })
 }
 

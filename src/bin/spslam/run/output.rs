@@ -15,7 +15,8 @@ use spslam::system::{
 
 use crate::plot_plane::PlotPlaneChoice;
 
-use super::evaluation::{evaluate_run, Drift, LinkTruth, RunEvaluation};
+use super::candidate_truth::{judge_candidates, JudgedCandidate};
+use super::evaluation::{evaluate_run, ground_truth_row, Drift, LinkTruth, RunEvaluation};
 use super::frame_loop::{RunEnd, UnreadableFrame};
 use super::source::Source;
 use spslam::camera::Sensor;
@@ -98,6 +99,11 @@ struct RunReport<'a> {
     links_ground_truth: Option<&'a [LinkTruth]>,
     /// The global bundle adjustments run after the corrections.
     global_ba: &'a [GlobalBaSummary],
+    /// With `--record-loop-stages`: every loop and merge candidate checked,
+    /// each stage's count, and (with ground truth) its registration's
+    /// truth.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    loop_candidates: Vec<JudgedCandidate<'a>>,
     frames: &'a [FrameRecord],
 }
 
@@ -335,6 +341,7 @@ impl RunOutputs<'_> {
             .with_context(|| format!("cannot write {}", path.display()))
             .map(|()| path);
         keep(result, &mut problems);
+        let loop_candidates = self.judge_loop_candidates(slam, trajectory.as_ref(), &evaluated);
         let report = RunReport {
             dataset: self.dataset,
             sensor: self.sensor,
@@ -359,6 +366,7 @@ impl RunOutputs<'_> {
             merges: slam.merges(),
             links_ground_truth: evaluated.links.as_deref(),
             global_ba: slam.global_ba_runs(),
+            loop_candidates,
             frames: records,
         };
         keep(self.write_json(&report), &mut problems);
@@ -411,6 +419,29 @@ impl RunOutputs<'_> {
             self.plot_plane,
             text,
         )
+    }
+
+    /// The recorded loop and merge candidates, judged against the ground
+    /// truth the run was evaluated with (not judged without one).
+    fn judge_loop_candidates<'s>(
+        &self,
+        slam: &'s SlamSystem,
+        estimate: Option<&Trajectory>,
+        evaluated: &RunEvaluation,
+    ) -> Vec<JudgedCandidate<'s>> {
+        let candidates = slam.loop_candidates();
+        let time = |frame: usize| {
+            slam.records()
+                .iter()
+                .find(|r| r.index == frame)
+                .map(|r| r.timestamp)
+        };
+        let empty = Trajectory::new(Vec::new(), Vec::new());
+        let gt = evaluated.ground_truth.as_ref().unwrap_or(&empty);
+        let estimate = estimate.unwrap_or(&empty);
+        let by_index = self.source.is_kitti();
+        let row = |frame| ground_truth_row(gt, estimate, by_index, time(frame)?);
+        judge_candidates(candidates, gt, row, self.sensor != Sensor::Monocular)
     }
 
     /// `report.json`.
