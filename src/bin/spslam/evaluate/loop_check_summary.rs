@@ -355,6 +355,14 @@ mod tests {
         }
     }
 
+    fn passing(right: usize, wrong: usize, queries: usize) -> Passed {
+        Passed {
+            right,
+            wrong,
+            queries,
+        }
+    }
+
     #[test]
     fn a_sweep_moves_one_threshold_and_counts_by_truth() {
         let right = Some(CandidateTruth::Same);
@@ -368,32 +376,11 @@ mod tests {
             judged(40, [10, 9, 9, 60, 60], None),
         ];
         let th = LoopThresholds::default();
-        assert_eq!(
-            passed(&candidates, &th),
-            Passed {
-                right: 2,
-                wrong: 0,
-                queries: 1
-            }
-        );
+        assert_eq!(passed(&candidates, &th), passing(2, 0, 1));
         let low = LoopParameter::ReprojectionInliers.with(th, 60.0);
-        assert_eq!(
-            passed(&candidates, &low),
-            Passed {
-                right: 3,
-                wrong: 0,
-                queries: 2
-            }
-        );
+        assert_eq!(passed(&candidates, &low), passing(3, 0, 2));
         let no_ratio = LoopParameter::RansacInlierRatio.with(th, 0.0);
-        assert_eq!(
-            passed(&candidates, &no_ratio),
-            Passed {
-                right: 2,
-                wrong: 1,
-                queries: 1
-            }
-        );
+        assert_eq!(passed(&candidates, &no_ratio), passing(2, 1, 1));
         let sweep = LoopParameter::ReprojectionInliers.sweep(&th);
         assert!(sweep.contains(&80.0) && sweep.contains(&20.0) && sweep.contains(&240.0));
         assert!(sweep.windows(2).all(|w| w[0] < w[1]));
