@@ -283,6 +283,7 @@ impl System {
                     levels,
                     loop_closing,
                     codebook,
+                    ..SystemOptions::default()
                 },
                 inline_mapping,
                 slam: None,
