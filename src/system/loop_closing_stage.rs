@@ -169,6 +169,7 @@ pub(crate) struct LoopLog {
     /// ([`LoopThresholds::record_every_stage`]): a long run would otherwise
     /// grow it without bound.
     pub(crate) candidates: Vec<LoopCandidateRecord>,
+    /// Whether `candidates` is kept (set when loop closing is enabled).
     pub(crate) keep_candidates: bool,
 }
 

@@ -109,47 +109,34 @@ impl LoopParameter {
         }
     }
 
+    /// The count threshold it names in `th` (`None` for the ratio).
+    fn count_mut(self, th: &mut LoopThresholds) -> Option<&mut usize> {
+        match self {
+            Self::Matches => Some(&mut th.min_matches),
+            Self::RansacInliers => Some(&mut th.min_ransac_inliers),
+            Self::RansacInlierRatio => None,
+            Self::OptimisedInliers => Some(&mut th.min_optimised_inliers),
+            Self::ProjectionMatches => Some(&mut th.min_projection_matches),
+            Self::ReprojectionInliers => Some(&mut th.min_reprojection_inliers),
+        }
+    }
+
     /// Its value in `th`.
     pub fn value(self, th: &LoopThresholds) -> f64 {
-        match self {
-            Self::Matches => th.min_matches as f64,
-            Self::RansacInliers => th.min_ransac_inliers as f64,
-            Self::RansacInlierRatio => f64::from(th.min_ransac_inlier_ratio),
-            Self::OptimisedInliers => th.min_optimised_inliers as f64,
-            Self::ProjectionMatches => th.min_projection_matches as f64,
-            Self::ReprojectionInliers => th.min_reprojection_inliers as f64,
+        let mut th = *th;
+        match self.count_mut(&mut th) {
+            Some(count) => *count as f64,
+            None => f64::from(th.min_ransac_inlier_ratio),
         }
     }
 
     /// `th` with this threshold at `value` (counts round up).
-    pub fn with(self, th: LoopThresholds, value: f64) -> LoopThresholds {
-        let count = value.max(0.0).ceil() as usize;
-        match self {
-            Self::Matches => LoopThresholds {
-                min_matches: count,
-                ..th
-            },
-            Self::RansacInliers => LoopThresholds {
-                min_ransac_inliers: count,
-                ..th
-            },
-            Self::RansacInlierRatio => LoopThresholds {
-                min_ransac_inlier_ratio: value as f32,
-                ..th
-            },
-            Self::OptimisedInliers => LoopThresholds {
-                min_optimised_inliers: count,
-                ..th
-            },
-            Self::ProjectionMatches => LoopThresholds {
-                min_projection_matches: count,
-                ..th
-            },
-            Self::ReprojectionInliers => LoopThresholds {
-                min_reprojection_inliers: count,
-                ..th
-            },
+    pub fn with(self, mut th: LoopThresholds, value: f64) -> LoopThresholds {
+        match self.count_mut(&mut th) {
+            Some(count) => *count = value.max(0.0).ceil() as usize,
+            None => th.min_ransac_inlier_ratio = value as f32,
         }
+        th
     }
 
     /// The values swept: fractions and multiples of the default.

@@ -133,14 +133,17 @@ fn status_line(end: &RunEnd, processed: usize, total: usize, unreadable: usize) 
     }
 }
 
+/// The timestamp of input frame `frame`, when the run processed it.
+fn frame_time(slam: &SlamSystem, frame: usize) -> Option<f64> {
+    slam.records()
+        .iter()
+        .find(|r| r.index == frame)
+        .map(|r| r.timestamp)
+}
+
 /// The accepted loops as pairs of frame timestamps, for the plot.
 fn loop_links(slam: &SlamSystem) -> Vec<(f64, f64)> {
-    let time = |frame: usize| {
-        slam.records()
-            .iter()
-            .find(|r| r.index == frame)
-            .map(|r| r.timestamp)
-    };
+    let time = |frame: usize| frame_time(slam, frame);
     let loops = slam.loops().iter().map(|l| (l.query_frame, l.match_frame));
     let merges = slam.merges().iter().map(|m| (m.query_frame, m.match_frame));
     loops
@@ -430,17 +433,11 @@ impl RunOutputs<'_> {
         evaluated: &RunEvaluation,
     ) -> Vec<JudgedCandidate<'s>> {
         let candidates = slam.loop_candidates();
-        let time = |frame: usize| {
-            slam.records()
-                .iter()
-                .find(|r| r.index == frame)
-                .map(|r| r.timestamp)
-        };
         let empty = Trajectory::new(Vec::new(), Vec::new());
         let gt = evaluated.ground_truth.as_ref().unwrap_or(&empty);
         let estimate = estimate.unwrap_or(&empty);
         let by_index = self.source.is_kitti();
-        let row = |frame| ground_truth_row(gt, estimate, by_index, time(frame)?);
+        let row = |frame| ground_truth_row(gt, estimate, by_index, frame_time(slam, frame)?);
         judge_candidates(candidates, gt, row, self.sensor != Sensor::Monocular)
     }
 
