@@ -144,6 +144,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
             last_keyframe_frame: frame.index - row.frames_since_keyframe,
             last_relocalisation_frame: None,
             inliers: (row.inliers * r).round() as usize,
+            reference_peak: usize::MAX,
             max_frames: 10,
             mapping_queue: row.queue,
             velocity: None,
@@ -163,6 +164,7 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         last_keyframe_frame: frame.index - 1,
         last_relocalisation_frame: Some(frame.index - 2),
         inliers: (0.6 * r) as usize,
+        reference_peak: usize::MAX,
         max_frames: 10,
         mapping_queue: 0,
         velocity: None,
@@ -180,6 +182,57 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         !needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
         "recently relocalised"
     );
+}
+
+#[test]
+fn near_its_reference_the_ratio_counts_against_the_most_tracked() {
+    // spslam's departure from ORB-SLAM3's condition 2: while the camera
+    // stays near its reference keyframe (baseline under 4 % of the median
+    // depth, under 5° of rotation), the frame's inliers are compared with
+    // 0.75 × the fewer of the reference's well-observed points and the most
+    // inliers a frame has tracked with this reference.
+    let world = PointWorld::new(3, 900, (14.0, 5.0, 4.0, 40.0));
+    let (map, kfs) = world.keyframe_chain(3);
+    let reference = kfs[2].0; // at z = 0.8 m; median depth about 20 m
+    let r = points_seen_by(&map, reference, 3) as f64;
+    let decide = |position: Vector3<f64>, yaw: f64, peak: f64| {
+        let pose = pose_at(position, yaw);
+        let (mut frame, _) = world.frame(30, &pose, true);
+        frame.pose_cw = pose;
+        // 150 tracked close points: the close-point condition holds off.
+        let close: Vec<usize> = (0..frame.len())
+            .filter(|&i| frame.depth(i).is_some_and(|d| d < world.rig.close_depth))
+            .collect();
+        assert!(close.len() > 150, "{} close keypoints", close.len());
+        frame.map_points.iter_mut().for_each(|p| *p = None);
+        for &i in close.iter().take(150) {
+            frame.map_points[i] = Some(crate::map::MapPointId(0));
+        }
+        let ctx = KeyFrameContext {
+            reference,
+            last_keyframe_frame: frame.index - 1,
+            last_relocalisation_frame: None,
+            inliers: (0.6 * r).round() as usize,
+            reference_peak: (peak * r).round() as usize,
+            max_frames: 10,
+            mapping_queue: 0,
+            velocity: None,
+        };
+        needs_keyframe(&frame, &map, &world.rig, &ctx).insert
+    };
+    let near = Vector3::new(0.0, 0.0, 1.0);
+    assert!(
+        decide(near, 0.0, 1.0),
+        "60 % of a peak as high as the reference's points"
+    );
+    assert!(
+        !decide(near, 0.0, 0.7),
+        "60 % ≥ 0.75 × a peak of 70 %: no keyframe"
+    );
+    assert!(decide(near, 0.0, 0.85), "60 % < 0.75 × a peak of 85 %");
+    // Moved 1.2 m (6 % of the median depth) or turned 10°: ORB-SLAM3's rule.
+    assert!(decide(Vector3::new(0.0, 0.0, 2.0), 0.0, 0.7), "moved away");
+    assert!(decide(near, 10f64.to_radians(), 0.7), "turned");
 }
 
 #[test]
@@ -251,6 +304,7 @@ fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
             last_keyframe_frame: frame.index - 1,
             last_relocalisation_frame: None,
             inliers: (inliers * r).round() as usize,
+            reference_peak: usize::MAX,
             max_frames: 10,
             mapping_queue: queue,
             velocity: None,
@@ -271,6 +325,7 @@ fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
             last_keyframe_frame: stereo_frame.index - 1,
             last_relocalisation_frame: None,
             inliers: 20,
+            reference_peak: usize::MAX,
             max_frames: 10,
             mapping_queue: queue,
             velocity: None,
@@ -322,6 +377,7 @@ fn tracked_points_about_to_leave_the_view_ask_for_a_keyframe() {
         last_relocalisation_frame: None,
         // As many inliers as the reference has points: no ratio condition.
         inliers: 10_000,
+        reference_peak: usize::MAX,
         max_frames: 10,
         mapping_queue: 1,
         velocity,

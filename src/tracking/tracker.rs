@@ -79,6 +79,9 @@ pub struct Tracker {
     last_relative: Option<(KeyFrameId, Se3)>,
     velocity: Option<Se3>,
     reference: Option<KeyFrameId>,
+    /// The most inliers a frame tracked with the reference keyframe (its
+    /// own count when it was inserted), see the keyframe rule.
+    reference_peak: Option<(KeyFrameId, usize)>,
     last_keyframe_frame: usize,
     last_relocalisation_frame: Option<usize>,
     /// Index of the first frame of the current loss.
@@ -118,6 +121,7 @@ impl Tracker {
             last_relative: None,
             velocity: None,
             reference: None,
+            reference_peak: None,
             last_keyframe_frame: 0,
             last_relocalisation_frame: None,
             lost_since: None,
@@ -215,6 +219,7 @@ impl Tracker {
             let mut map = self.timed(|| map.write())?;
             let (kf, created) = insert_keyframe(&mut frame, &mut map, &self.rig)?;
             self.reference = Some(kf);
+            self.reference_peak = Some((kf, outcome.inliers));
             self.last_keyframe_frame = frame.index;
             outcome.new_keyframe = Some((kf, created));
             outcome.relative_pose = Some((kf, Se3::identity()));
@@ -350,11 +355,19 @@ impl Tracker {
                 .as_ref()
                 .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()))
         };
+        let reference_peak = self.reference.map(|reference| match self.reference_peak {
+            Some((kf, peak)) if kf == reference => peak,
+            _ => self
+                .last_frame
+                .as_ref()
+                .map_or(inliers, |last| last.tracked_count()),
+        });
         let wants_keyframe = self
             .reference
             .map_or(KeyFrameDecision::default(), |reference| {
                 let ctx = KeyFrameContext {
                     reference,
+                    reference_peak: reference_peak.unwrap_or(inliers),
                     last_keyframe_frame: self.last_keyframe_frame,
                     last_relocalisation_frame: self.last_relocalisation_frame,
                     inliers,
@@ -364,6 +377,10 @@ impl Tracker {
                 };
                 needs_keyframe(&frame, map, &self.rig, &ctx)
             });
+        self.reference_peak = self
+            .reference
+            .zip(reference_peak)
+            .map(|(kf, peak)| (kf, peak.max(inliers)));
         let relative_pose = self.relative_to_reference(&frame, map)?;
         let outcome = TrackOutcome {
             state: self.state,
