@@ -252,7 +252,11 @@ pub(crate) fn needs_keyframe(
     let c1b = ctx.mapping_queue == 0;
     let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
     let threshold = reference_matches as f64 * ref_ratio;
-    let threshold = if near_reference(frame, map, ctx.reference) {
+    // The peak only lowers the threshold when it is under the reference's
+    // count, so the camera's motion is only measured then.
+    let threshold = if ctx.reference_peak < reference_matches
+        && near_reference(frame, map, ctx.reference)
+    {
         threshold.min(ctx.reference_peak as f64 * ref_ratio)
     } else {
         threshold

@@ -355,19 +355,22 @@ impl Tracker {
                 .as_ref()
                 .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()))
         };
-        let reference_peak = self.reference.map(|reference| match self.reference_peak {
-            Some((kf, peak)) if kf == reference => peak,
-            _ => self
-                .last_frame
-                .as_ref()
-                .map_or(inliers, |last| last.tracked_count()),
-        });
-        let wants_keyframe = self
-            .reference
-            .map_or(KeyFrameDecision::default(), |reference| {
+        // The most inliers a frame has tracked with the reference: the
+        // keyframe's own count when tracking made it, else (a reference
+        // chosen by the local map or a relocalisation) the last frame's.
+        let (wants_keyframe, reference_peak) = match self.reference {
+            None => (KeyFrameDecision::default(), None),
+            Some(reference) => {
+                let peak = match self.reference_peak {
+                    Some((kf, peak)) if kf == reference => peak,
+                    _ => self
+                        .last_frame
+                        .as_ref()
+                        .map_or(inliers, |last| last.tracked_count()),
+                };
                 let ctx = KeyFrameContext {
                     reference,
-                    reference_peak: reference_peak.unwrap_or(inliers),
+                    reference_peak: peak,
                     last_keyframe_frame: self.last_keyframe_frame,
                     last_relocalisation_frame: self.last_relocalisation_frame,
                     inliers,
@@ -375,12 +378,11 @@ impl Tracker {
                     mapping_queue,
                     velocity: self.velocity,
                 };
-                needs_keyframe(&frame, map, &self.rig, &ctx)
-            });
-        self.reference_peak = self
-            .reference
-            .zip(reference_peak)
-            .map(|(kf, peak)| (kf, peak.max(inliers)));
+                let decision = needs_keyframe(&frame, map, &self.rig, &ctx);
+                (decision, Some((reference, peak.max(inliers))))
+            }
+        };
+        self.reference_peak = reference_peak;
         let relative_pose = self.relative_to_reference(&frame, map)?;
         let outcome = TrackOutcome {
             state: self.state,
