@@ -5,13 +5,14 @@
 //! in the same system: every frame tracked, the ATE, and the keyframe rate.
 //!
 //! Measured (Intel Xeon with AVX-512 VNNI, 8-bit int8 model, mapping
-//! inline): SuperPoint + ANMS 31 keyframes, ATE 0.0155 m; ORB 9
+//! inline): SuperPoint + ANMS 15 keyframes, ATE 0.0173 m; ORB 9
 //! keyframes, ATE 0.0161 m. Under ORB-SLAM3's `NeedNewKeyFrame` alone
-//! (before the keyframe rule counted against the most tracked points near
-//! the reference, `tracking::keyframe`) SuperPoint made 125 keyframes
-//! (ORB 12), so the keyframe bound (≤ 40: 3× ORB's 12 under ORB-SLAM3's
-//! rule, 29 % above the measurement) catches that rule's return. The ATE
-//! bounds leave 25 % for the other int8 model and CPU kinds.
+//! SuperPoint made 125 keyframes (ORB 12), and 31 while a stereo or RGB-D
+//! keyframe's peak was raised by the frames after it (before
+//! `tracking::keyframe::next_reference_peak`), so the keyframe bound
+//! (≤ 24: 60 % above the measurement, under 3× ORB's 9) catches either
+//! rule's return. The ATE bounds leave 25 % for the other int8 model and
+//! CPU kinds.
 
 mod common;
 
@@ -94,13 +95,13 @@ fn kitchen_rgbd_tracks_every_frame_superpoint_beside_orb() {
         assert_eq!((o.tracked, o.lost), (150, 0), "{name}: {o:?}");
     }
     assert!(
-        superpoint.keyframes_inserted <= 40,
-        "SuperPoint keyframes (measured 31; 125 under ORB-SLAM3's rule alone): {superpoint:?}"
+        superpoint.keyframes_inserted <= 24,
+        "SuperPoint keyframes (measured 15; 31 with the peak raised after the keyframe, 125 under ORB-SLAM3's rule alone): {superpoint:?}"
     );
     assert!(
         orb.keyframes_inserted <= 12,
         "ORB keyframes (measured 9; 12 under ORB-SLAM3's rule alone): {orb:?}"
     );
-    assert!(superpoint.ate_se3_m <= 0.020, "SuperPoint: {superpoint:?}");
+    assert!(superpoint.ate_se3_m <= 0.022, "SuperPoint: {superpoint:?}");
     assert!(orb.ate_se3_m <= 0.021, "ORB: {orb:?}");
 }

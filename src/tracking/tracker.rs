@@ -9,7 +9,8 @@ use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
 use super::keyframe::{
-    initialise_map, insert_keyframe, needs_keyframe, KeyFrameContext, KeyFrameDecision,
+    initialise_map, insert_keyframe, needs_keyframe, next_reference_peak, KeyFrameContext,
+    KeyFrameDecision,
 };
 use super::local_map::track_local_map;
 use super::mono_init::MonoInitialiser;
@@ -79,8 +80,8 @@ pub struct Tracker {
     last_relative: Option<(KeyFrameId, Se3)>,
     velocity: Option<Se3>,
     reference: Option<KeyFrameId>,
-    /// The most inliers a frame tracked with the reference keyframe (its
-    /// own count when it was inserted), see the keyframe rule.
+    /// The count condition 2 compares with near the reference keyframe
+    /// (its own inliers when it was inserted; see [`next_reference_peak`]).
     reference_peak: Option<(KeyFrameId, usize)>,
     last_keyframe_frame: usize,
     last_relocalisation_frame: Option<usize>,
@@ -379,7 +380,8 @@ impl Tracker {
                     velocity: self.velocity,
                 };
                 let decision = needs_keyframe(&frame, map, &self.rig, &ctx);
-                (decision, Some((reference, peak.max(inliers))))
+                let peak = next_reference_peak(peak, inliers, self.rig.sensor);
+                (decision, Some((reference, peak)))
             }
         };
         self.reference_peak = reference_peak;
