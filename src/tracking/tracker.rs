@@ -356,9 +356,10 @@ impl Tracker {
                 .as_ref()
                 .map(|last| frame.pose_cw.compose(&last.pose_cw.inverse()))
         };
-        // The most inliers a frame has tracked with the reference: the
-        // keyframe's own count when tracking made it, else (a reference
-        // chosen by the local map or a relocalisation) the last frame's.
+        // What condition 2 compares with near the reference: the
+        // keyframe's own inliers when tracking made it, else (a reference
+        // chosen by the local map or a relocalisation) the last frame's;
+        // `next_reference_peak` raises it for a monocular camera.
         let (wants_keyframe, reference_peak) = match self.reference {
             None => (KeyFrameDecision::default(), None),
             Some(reference) => {
