@@ -105,9 +105,8 @@ pub(crate) struct KeyFrameDecision {
 }
 
 /// ORB-SLAM3's `NeedNewKeyFrame` for stereo, RGB-D and monocular, with
-/// four departures: condition 2's ratio counts against the most inliers a
-/// frame has tracked with the reference while the camera stays near it
-/// (below); a keyframe wanted because tracking is weak
+/// four departures: condition 2's ratio counts against what the view of
+/// the reference tracked while the camera stays near it (below); a keyframe wanted because tracking is weak
 /// (condition 1c) is never refused for local mapping's queue; a monocular
 /// camera has a condition 1c too, and interrupts a busy mapper's BA
 /// whenever it wants a keyframe (below); and ORB-SLAM3's close-point condition
@@ -299,7 +298,7 @@ pub(crate) fn needs_keyframe(
 /// keyframe's own inliers when it was made, not raised by later frames.
 ///
 /// A stereo or RGB-D keyframe makes points of its own close keypoints
-/// ([`insert_keyframe`]: 500–700 on the 7-Scenes kitchen with SuperPoint),
+/// ([`insert_keyframe`]: 480–770 on the 7-Scenes kitchen with SuperPoint),
 /// and the frames just after it, nearly the same image, find many of them
 /// again: on the kitchen the count jumps from the keyframe's 240–300 to
 /// 350–450 on the next frame, then falls by a quarter within two to four
