@@ -27,6 +27,7 @@ use crate::mapping::{apply_fusion_candidates, plan_fusion_into, refresh_observed
 use crate::optim::{LieGroup, Se3, Sim3};
 
 use super::detector::AcceptedLoop;
+use super::drift::pose_difference;
 use super::essential_graph::{optimise_essential_graph, EssentialGraphInput};
 
 /// What a correction did.
@@ -46,13 +47,6 @@ pub struct LoopCorrection {
     pub graph_iterations: usize,
     /// Time of the essential-graph optimisation (ms).
     pub graph_ms: f64,
-}
-
-/// Camera-centre distance and rotation angle (degrees) between two poses.
-pub fn pose_difference(a: &Se3, b: &Se3) -> (f64, f64) {
-    let (ca, cb) = (a.inverse().translation, b.inverse().translation);
-    let angle = a.rotation.angle_to(&b.rotation).to_degrees();
-    ((ca - cb).norm(), angle)
 }
 
 /// The scale of the query's side of a monocular loop over the loop side's:

@@ -28,6 +28,7 @@ use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::Se3;
 use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 
+use super::drift::loop_travel;
 use super::stage_counts::{CandidateCheck, LoopStage};
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
@@ -372,7 +373,7 @@ impl LoopDetector {
                     // What the check reads is copied under one short read
                     // lock; the check itself (tens of ms) holds none.
                     let Some(detached) =
-                        self.detach(&*read()?, kf, candidate.0, query_side.as_ref())
+                        self.detach(&*read()?, (kf, candidate.0), rig, query_side.as_ref())
                     else {
                         continue;
                     };
@@ -458,7 +459,8 @@ impl LoopDetector {
         if map.keyframe(kf).is_err() || map.keyframe(candidate.0).is_err() {
             return Ok(CandidateStep::Rejected);
         }
-        let group = candidate_group(map, candidate.0, self.thresholds.group_size);
+        let mut group = candidate_group(map, candidate.0, self.thresholds.group_size);
+        group.travel = loop_travel(map, candidate.0, kf, rig);
         self.check_group(map, kf, (&group, map), candidate.1, rig, log)
     }
 
@@ -468,14 +470,15 @@ impl LoopDetector {
     fn detach(
         &self,
         map: &Map,
-        kf: KeyFrameId,
-        candidate: KeyFrameId,
+        (kf, candidate): (KeyFrameId, KeyFrameId),
+        rig: &CameraRig,
         query_side: Option<&Arc<Map>>,
     ) -> Option<DetachedCheck> {
         if map.keyframe(kf).is_err() || map.keyframe(candidate).is_err() {
             return None;
         }
-        let (group, points) = detach_group(map, candidate, &self.thresholds);
+        let (mut group, points) = detach_group(map, candidate, &self.thresholds);
+        group.travel = loop_travel(map, candidate, kf, rig);
         let query_side = query_side
             .map(Arc::clone)
             .unwrap_or_else(|| Arc::new(detach_query(map, kf, &self.thresholds)));

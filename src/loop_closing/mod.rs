@@ -24,6 +24,7 @@ mod correct;
 #[cfg(test)]
 mod correct_tests;
 mod detector;
+mod drift;
 mod essential_graph;
 mod global_ba;
 mod merge;
@@ -33,11 +34,12 @@ mod streak;
 mod thresholds;
 mod verify;
 
-pub use correct::{correct_loop, pose_difference, LoopCorrection};
+pub use correct::{correct_loop, LoopCorrection};
 pub use detector::{
     AcceptedLoop, CandidateStep, DetectionOutcome, DetectionPlan, LoopDetector,
     SharedKeyframeDatabase,
 };
+pub use drift::{pose_difference, travel_between, LoopDrift, Travel};
 pub use essential_graph::{
     build_essential_graph, optimise_essential_graph, EssentialGraph, EssentialGraphInput,
     EssentialGraphOutcome, GraphPose, MIN_ESSENTIAL_WEIGHT,

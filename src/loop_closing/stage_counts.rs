@@ -10,6 +10,7 @@
 
 use crate::map::KeyFrameId;
 
+use super::drift::LoopDrift;
 use super::thresholds::LoopThresholds;
 
 /// The stage at which a candidate failed.
@@ -26,6 +27,9 @@ pub enum LoopStage {
     Projection,
     /// Too few inliers after the second search by projection.
     Reprojection,
+    /// Every count passed, but the correction is more than drift explains
+    /// ([`LoopDrift::excess`]; maps with a metric scale only).
+    Drift,
     /// Verified, but not confirmed by enough keyframes.
     Confirmation,
 }
@@ -45,6 +49,10 @@ pub struct LoopStageCounts {
     pub projection_matches: Option<usize>,
     /// Inliers after the second search (3 px) and the last optimisation.
     pub reprojection_inliers: Option<usize>,
+    /// The correction the last pose asks for next to the way travelled
+    /// since the candidate (`None`: no pose, a merge, or a monocular map).
+    #[serde(default)]
+    pub drift: Option<LoopDrift>,
 }
 
 impl LoopStageCounts {
@@ -56,7 +64,8 @@ impl LoopStageCounts {
 
     /// The first stage, in the check's order, whose threshold in `th` these
     /// counts fail, with the count reached there (0 for a stage that did
-    /// not run); `None` when every geometric stage passes. The only place
+    /// not run; for [`LoopStage::Drift`], the correction in per cent of
+    /// what drift explains); `None` when every stage passes. The only place
     /// that decides a candidate's verdict from its counts.
     pub fn first_failing(&self, th: &LoopThresholds) -> Option<(LoopStage, usize)> {
         if self.descriptor_matches < th.min_matches {
@@ -84,9 +93,13 @@ impl LoopStageCounts {
                 th.min_reprojection_inliers,
             ),
         ];
-        stages.into_iter().find_map(|(stage, count, min)| {
+        let counted = stages.into_iter().find_map(|(stage, count, min)| {
             let count = count.unwrap_or(0);
             (count < min).then_some((stage, count))
+        });
+        counted.or_else(|| {
+            let excess = self.drift?.excess(th);
+            (excess > 1.0).then(|| (LoopStage::Drift, (100.0 * excess).round().min(1e9) as usize))
         })
     }
 }
@@ -123,6 +136,7 @@ mod tests {
             optimised_inliers: Some(o),
             projection_matches: Some(p),
             reprojection_inliers: Some(f),
+            drift: None,
         }
     }
 
@@ -169,5 +183,35 @@ mod tests {
         };
         assert_eq!(unrun.first_failing(&th), Some((LoopStage::Reprojection, 0)));
         assert_eq!(LoopStageCounts::default().ransac_inlier_ratio(), None);
+    }
+
+    #[test]
+    fn a_correction_beyond_drift_fails_last_and_only_then() {
+        use super::super::drift::{LoopDrift, Travel};
+        let th = LoopThresholds::default();
+        let drift = |correction_m: f64| LoopDrift {
+            correction_m,
+            correction_deg: 1.0,
+            travel: Travel {
+                path_m: 100.0,
+                turned_deg: 90.0,
+                scene_depth_m: 10.0,
+            },
+        };
+        let allowed_m = th.max_drift_ratio * 100.0;
+        let with = |d: LoopDrift, f: usize| LoopStageCounts {
+            drift: Some(d),
+            ..counts(100, Some(90), 90, 150, f)
+        };
+        assert_eq!(with(drift(0.9 * allowed_m), 120).first_failing(&th), None);
+        assert_eq!(
+            with(drift(2.0 * allowed_m), 120).first_failing(&th),
+            Some((LoopStage::Drift, 200))
+        );
+        // A count that fails comes first.
+        assert_eq!(
+            with(drift(2.0 * allowed_m), 79).first_failing(&th),
+            Some((LoopStage::Reprojection, 79))
+        );
     }
 }

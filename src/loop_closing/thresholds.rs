@@ -47,6 +47,23 @@ pub struct LoopThresholds {
     /// Inliers after the second search by projection, window 3 px, and a
     /// last optimisation (ORB-SLAM3's `nProjOptMatches = 80`).
     pub min_reprojection_inliers: usize,
+    /// The largest correction, as a fraction of the way travelled since
+    /// the candidate (path in metres, turns in degrees), that drift
+    /// explains for a map with a metric scale (not in ORB-SLAM3 for visual
+    /// maps; its inertial maps reject a loop that turns gravity: see
+    /// [`super::LoopDrift`]). Chosen from `spslam evaluate --set loopcheck`
+    /// (EVALUATION.md, "A plausibility gate for loop corrections"): every
+    /// loop the standard set closed right corrected at most 0.9% of its
+    /// path, the repeated-texture false loops 43% and 87%.
+    pub max_drift_ratio: f64,
+    /// The translation a correction may have however short the way: this
+    /// fraction of the query's median scene depth (a keyframe's position is
+    /// known to a fraction of what it sees).
+    pub drift_floor_depths: f64,
+    /// The rotation a correction may have however little the camera
+    /// turned (degrees): ORB-SLAM3's bound on an inertial map's loop yaw
+    /// (`LoopClosing::Run`: 0.349 rad).
+    pub drift_floor_deg: f64,
     /// Inliers needed by a covisible or a later keyframe to confirm the loop
     /// at the same correction (ORB-SLAM3's `DetectAndReffineSim3FromLastKF`:
     /// `nProjOptMatches = 50`).
@@ -81,6 +98,9 @@ impl Default for LoopThresholds {
             min_optimised_inliers: 20,
             min_projection_matches: 50,
             min_reprojection_inliers: 80,
+            max_drift_ratio: 0.1,
+            drift_floor_depths: 0.1,
+            drift_floor_deg: 20.0,
             min_confirmation_inliers: 50,
             confirmations: 3,
             confirming_covisibles: 5,

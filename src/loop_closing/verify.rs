@@ -1,8 +1,10 @@
 //! The geometric check of one loop candidate (ORB-SLAM3's
 //! `DetectCommonRegionsFromBoW` for a stereo map, scale fixed): descriptor
 //! matches with the candidate's group, a RANSAC pose, pose optimisation,
-//! two searches by projection. Read only: it works on a [`Frame`] made from
-//! the query keyframe.
+//! two searches by projection; for the loop detector's checks on a map
+//! with a metric scale, last, whether the correction can be drift
+//! ([`super::drift`]). Read only: it works on a [`Frame`] made from the
+//! query keyframe.
 
 use std::collections::BTreeSet;
 
@@ -15,6 +17,7 @@ use crate::tracking::{
     VisiblePoint,
 };
 
+use super::drift::{LoopDrift, Travel};
 use super::stage_counts::{CandidateCheck, LoopStage, LoopStageCounts};
 use super::thresholds::LoopThresholds;
 
@@ -75,6 +78,11 @@ pub(crate) struct CandidateGroup {
     pub(crate) points: Vec<MapPointId>,
     /// The candidate's pose `T_cw` (`None` when culled).
     pub(crate) candidate_pose_cw: Option<Se3>,
+    /// The way travelled from the candidate to the query, when the check
+    /// judges the correction by it ([`LoopDrift`]): set by the loop
+    /// detector ([`super::drift::loop_travel`]); `None` for a merge and for
+    /// the bare geometric check ([`verify_candidate`]).
+    pub(crate) travel: Option<Travel>,
 }
 
 /// The candidate and its best `size` covisible keyframes, and their points.
@@ -95,6 +103,7 @@ pub(crate) fn candidate_group(map: &Map, candidate: KeyFrameId, size: usize) -> 
         keyframes,
         points: points.into_iter().collect(),
         candidate_pose_cw: map.pose_cw_of(candidate).ok(),
+        travel: None,
     }
 }
 
@@ -136,7 +145,9 @@ fn search(
     match_projected(frame, map, &visible, radius, (1, 1), None)
 }
 
-/// Checks `candidate` for the query keyframe (see the module's docs).
+/// Checks `candidate` for the query keyframe (see the module's docs): the
+/// geometric stages only; the loop detector also judges the correction
+/// against the way travelled ([`LoopDrift`]).
 pub fn verify_candidate(
     map: &Map,
     query: KeyFrameId,
@@ -212,6 +223,11 @@ fn verify_group(
         &mut counts,
         &mut pose,
     )?;
+    counts.drift = group
+        .travel
+        .zip(pose.as_ref())
+        .zip(query_map.pose_cw_of(query).ok())
+        .map(|((travel, (after_cw, _)), before_cw)| LoopDrift::measure(travel, &before_cw, after_cw));
     let candidate_in_query =
         pose.as_ref()
             .zip(group.candidate_pose_cw.as_ref())

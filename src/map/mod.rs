@@ -46,7 +46,7 @@ mod map_point;
 mod observation;
 mod parts;
 #[cfg(test)]
-mod tests_support;
+pub(crate) mod tests_support;
 
 use std::collections::BTreeMap;
 use std::sync::{Arc, RwLock};

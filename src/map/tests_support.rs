@@ -70,3 +70,18 @@ pub(crate) fn small_map(mut map: Map, keyframes: usize) -> Map {
     }
     map
 }
+
+/// A map with one keyframe (no points) at each pose `T_cw`, in order, and
+/// their ids.
+pub(crate) fn map_with_keyframes_at(poses: &[Se3]) -> (Map, Vec<KeyFrameId>) {
+    let mut map = Map::new();
+    let ids = poses
+        .iter()
+        .enumerate()
+        .map(|(i, pose)| {
+            map.add_keyframe(i, i as f64, *pose, measurements(4))
+                .expect("valid test measurements")
+        })
+        .collect();
+    (map, ids)
+}

@@ -84,17 +84,20 @@ pub enum LoopParameter {
     ProjectionMatches,
     /// [`LoopThresholds::min_reprojection_inliers`].
     ReprojectionInliers,
+    /// [`LoopThresholds::max_drift_ratio`].
+    DriftRatio,
 }
 
 impl LoopParameter {
     /// Every swept threshold, in the check's order.
-    pub const ALL: [Self; 6] = [
+    pub const ALL: [Self; 7] = [
         Self::Matches,
         Self::RansacInliers,
         Self::RansacInlierRatio,
         Self::OptimisedInliers,
         Self::ProjectionMatches,
         Self::ReprojectionInliers,
+        Self::DriftRatio,
     ];
 
     /// Its field's name.
@@ -106,15 +109,16 @@ impl LoopParameter {
             Self::OptimisedInliers => "min_optimised_inliers",
             Self::ProjectionMatches => "min_projection_matches",
             Self::ReprojectionInliers => "min_reprojection_inliers",
+            Self::DriftRatio => "max_drift_ratio",
         }
     }
 
-    /// The count threshold it names in `th` (`None` for the ratio).
+    /// The count threshold it names in `th` (`None` for the ratios).
     fn count_mut(self, th: &mut LoopThresholds) -> Option<&mut usize> {
         match self {
             Self::Matches => Some(&mut th.min_matches),
             Self::RansacInliers => Some(&mut th.min_ransac_inliers),
-            Self::RansacInlierRatio => None,
+            Self::RansacInlierRatio | Self::DriftRatio => None,
             Self::OptimisedInliers => Some(&mut th.min_optimised_inliers),
             Self::ProjectionMatches => Some(&mut th.min_projection_matches),
             Self::ReprojectionInliers => Some(&mut th.min_reprojection_inliers),
@@ -124,17 +128,19 @@ impl LoopParameter {
     /// Its value in `th`.
     pub fn value(self, th: &LoopThresholds) -> f64 {
         let mut th = *th;
-        match self.count_mut(&mut th) {
-            Some(count) => *count as f64,
-            None => f64::from(th.min_ransac_inlier_ratio),
+        match (self, self.count_mut(&mut th)) {
+            (_, Some(count)) => *count as f64,
+            (Self::DriftRatio, None) => th.max_drift_ratio,
+            (_, None) => f64::from(th.min_ransac_inlier_ratio),
         }
     }
 
     /// `th` with this threshold at `value` (counts round up).
     pub fn with(self, mut th: LoopThresholds, value: f64) -> LoopThresholds {
-        match self.count_mut(&mut th) {
-            Some(count) => *count = value.max(0.0).ceil() as usize,
-            None => th.min_ransac_inlier_ratio = value as f32,
+        match (self, self.count_mut(&mut th)) {
+            (_, Some(count)) => *count = value.max(0.0).ceil() as usize,
+            (Self::DriftRatio, None) => th.max_drift_ratio = value,
+            (_, None) => th.min_ransac_inlier_ratio = value as f32,
         }
         th
     }
@@ -144,6 +150,8 @@ impl LoopParameter {
         let default = self.value(th);
         let mut values: Vec<f64> = if self == Self::RansacInlierRatio {
             vec![0.0, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
+        } else if self == Self::DriftRatio {
+            vec![0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5, 1.0, 1e6]
         } else {
             [0.25, 0.5, 0.75, 1.0, 1.25, 1.5, 2.0, 3.0]
                 .iter()
@@ -205,7 +213,7 @@ pub fn markdown(rows: &[LoopCheckRow]) -> String {
     let _ = writeln!(
         md,
         "Every loop and merge candidate of the runs made with `--record-loop-stages`, checked through every stage, judged by where the check registered the candidate camera against the ground truth (right: within 1 m; wrong: beyond 3 m; between: not counted; monocular runs are not judged). \
-         A candidate *passes* when every geometric stage passes (ORB-SLAM3's order); a loop then still needs three confirming keyframes, which these tables do not model. \
+         A candidate *passes* when every stage passes: the geometric ones in ORB-SLAM3's order, then, for runs with a metric scale, the correction against the way travelled (`max_drift_ratio`; 1000000 turns it off); a loop then still needs three confirming keyframes, which these tables do not model. \
          Cells: right + wrong candidates passing (query keyframes with a right one).\n"
     );
     let _ = writeln!(
@@ -283,7 +291,9 @@ fn format_value(v: f64) -> String {
     if v.fract() == 0.0 {
         format!("{v:.0}")
     } else {
-        format!("{v:.2}")
+        // Up to three decimals, trailing zeros cut (0.005, 0.75).
+        let text = format!("{v:.3}");
+        text.trim_end_matches('0').to_string()
     }
 }
 
@@ -337,6 +347,7 @@ mod tests {
                 optimised_inliers: Some(o),
                 projection_matches: Some(p),
                 reprojection_inliers: Some(f),
+                drift: None,
             },
             truth,
         }
@@ -368,6 +379,22 @@ mod tests {
         assert_eq!(passed(&candidates, &low), passing(3, 0, 2));
         let no_ratio = LoopParameter::RansacInlierRatio.with(th, 0.0);
         assert_eq!(passed(&candidates, &no_ratio), passing(2, 1, 1));
+        // A look-alike that passes every count but moves the query 20 m
+        // after 26 m of travel: the drift gate alone stops it.
+        let mut far = judged(50, [100, 95, 95, 150, 120], wrong);
+        far.counts.drift = Some(spslam::loop_closing::LoopDrift {
+            correction_m: 20.0,
+            correction_deg: 5.0,
+            travel: spslam::loop_closing::Travel {
+                path_m: 26.0,
+                turned_deg: 90.0,
+                scene_depth_m: 8.0,
+            },
+        });
+        let with_far = [candidates.as_slice(), &[far]].concat();
+        assert_eq!(passed(&with_far, &th), passing(2, 0, 1));
+        let no_gate = LoopParameter::DriftRatio.with(th, 1e6);
+        assert_eq!(passed(&with_far, &no_gate), passing(2, 1, 1));
         let sweep = LoopParameter::ReprojectionInliers.sweep(&th);
         assert!(sweep.contains(&80.0) && sweep.contains(&20.0) && sweep.contains(&240.0));
         assert!(sweep.windows(2).all(|w| w[0] < w[1]));
