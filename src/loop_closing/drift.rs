@@ -55,10 +55,7 @@ pub fn travel_between(map: &Map, from: KeyFrameId, to: KeyFrameId) -> Option<Tra
     let mut path_m = 0.0;
     let mut turned_deg = 0.0;
     let mut previous: Option<Se3> = None;
-    for keyframe in map
-        .keyframes()
-        .filter(|k| (first..=last).contains(&k.id()))
-    {
+    for keyframe in map.keyframes().filter(|k| (first..=last).contains(&k.id())) {
         let pose = keyframe.pose_cw();
         if let Some(previous) = previous {
             let (metres, degrees) = pose_difference(&previous, &pose);
@@ -178,7 +175,11 @@ mod tests {
 
     #[test]
     fn the_correction_is_measured_at_the_camera_centre() {
-        let drift = LoopDrift::measure(travel(100.0, 0.0, 10.0), &pose_at(0.0, 0.0), &pose_at(2.0, 30.0));
+        let drift = LoopDrift::measure(
+            travel(100.0, 0.0, 10.0),
+            &pose_at(0.0, 0.0),
+            &pose_at(2.0, 30.0),
+        );
         assert!((drift.correction_m - 2.0).abs() < 1e-12);
         assert!((drift.correction_deg - 30.0).abs() < 1e-9);
         assert!((drift.path_ratio() - 0.02).abs() < 1e-12);
@@ -212,7 +213,11 @@ mod tests {
         assert!((degrees - th.drift_floor_deg).abs() < 1e-12);
         assert_eq!(drift.excess(&th), 0.0);
         // Nothing to go by (no path, no depth): any move is too much.
-        let blind = LoopDrift::measure(travel(0.0, 0.0, 0.0), &pose_at(0.0, 0.0), &pose_at(0.1, 0.0));
+        let blind = LoopDrift::measure(
+            travel(0.0, 0.0, 0.0),
+            &pose_at(0.0, 0.0),
+            &pose_at(0.1, 0.0),
+        );
         assert!(blind.excess(&th).is_infinite());
     }
 

@@ -227,7 +227,9 @@ fn verify_group(
         .travel
         .zip(pose.as_ref())
         .zip(query_map.pose_cw_of(query).ok())
-        .map(|((travel, (after_cw, _)), before_cw)| LoopDrift::measure(travel, &before_cw, after_cw));
+        .map(|((travel, (after_cw, _)), before_cw)| {
+            LoopDrift::measure(travel, &before_cw, after_cw)
+        });
     let candidate_in_query =
         pose.as_ref()
             .zip(group.candidate_pose_cw.as_ref())
