@@ -9,7 +9,7 @@
 //! keyframes, ATE 0.0161 m. Under ORB-SLAM3's `NeedNewKeyFrame` alone
 //! SuperPoint made 125 keyframes (ORB 12), and 31 while a stereo or RGB-D
 //! keyframe's peak was raised by the frames after it (before
-//! `tracking::keyframe::next_reference_peak`), so the keyframe bound
+//! `tracking::keyframe::next_near_reference_count`), so the keyframe bound
 //! (≤ 24: 60 % above the measurement, under 3× ORB's 9) catches either
 //! rule's return. The ATE bounds leave 25 % for the other int8 model and
 //! CPU kinds.

@@ -12,6 +12,8 @@
 //! - [`DatabaseRelocaliser`]: tracking's relocalisation candidates from
 //!   the detector's (shared) database;
 //! - [`verify_candidate`]: one candidate's check, stage by stage;
+//! - [`LoopDrift`]: its last stage in the detector, whether the correction
+//!   can be drift (maps with a metric scale);
 //! - [`MergeDetector`]: the same check against the older maps of the
 //!   atlas (map merging; the merge itself is `Map::absorb` then
 //!   [`correct_loop`]);

@@ -77,8 +77,8 @@ pub(crate) struct KeyFrameContext {
     /// Map points matched as inliers in the frame.
     pub inliers: usize,
     /// What condition 2 compares with near the reference keyframe (see
-    /// [`next_reference_peak`]).
-    pub reference_peak: usize,
+    /// [`next_near_reference_count`]).
+    pub near_reference_count: usize,
     /// Frames between keyframes at most (the frame rate).
     pub max_frames: usize,
     /// Keyframes local mapping has not finished (0: idle, ORB-SLAM3's
@@ -128,7 +128,7 @@ pub(crate) struct KeyFrameDecision {
 /// depth and under [`NEAR_ROTATION_DEG`] of rotation), the ratio is taken
 /// of the fewer of those points and what this view gave: the keyframe's
 /// own inliers when it was made (stereo, RGB-D), or the most a frame has
-/// tracked with it (monocular; [`next_reference_peak`] says why), so a
+/// tracked with it (monocular; [`next_near_reference_count`] says why), so a
 /// keyframe comes when tracking falls a quarter below what this view gave,
 /// not below what the keyframe rate gave. Farther away ORB-SLAM3's rule is
 /// kept as it is: the synthetic laps (10 Hz, 5–14 % of the depth a frame)
@@ -138,9 +138,10 @@ pub(crate) struct KeyFrameDecision {
 /// (EVALUATION.md, "The keyframe rate near the reference"): the kitchen
 /// 244 → 56 keyframes (ORB 16 → 12) with a 6 % lower ATE, the kitchen in
 /// monocular 245 → 91 with 22 more frames tracked; the laps and KITTI 06
-/// unchanged. With the stereo and RGB-D peak held at the keyframe's own
-/// count, the kitchen 56 → 29 keyframes, ATE 0.0195 → 0.0241 m (ORB
-/// 0.0281 m; EVALUATION.md, "The peak after a keyframe").
+/// unchanged. With the stereo and RGB-D near-reference count held at the
+/// keyframe's own count (it was the peak of the frames since), the
+/// kitchen 56 → 29 keyframes, ATE 0.0195 → 0.0241 m (ORB 0.0281 m;
+/// EVALUATION.md, "The peak after a keyframe").
 ///
 /// The look-ahead (the last departure) is for fast rotation. ORB-SLAM3 compares the
 /// frame's inliers with the reference keyframe's points seen by three
@@ -255,20 +256,21 @@ pub(crate) fn needs_keyframe(
     let c1b = ctx.mapping_queue == 0;
     let c1c = inliers < reference_matches as f64 * 0.25 || need_close;
     let threshold = reference_matches as f64 * ref_ratio;
-    // The peak only lowers the threshold when it is under the reference's
-    // count, so the camera's motion is only measured then.
-    let threshold =
-        if ctx.reference_peak < reference_matches && near_reference(frame, map, ctx.reference) {
-            threshold.min(ctx.reference_peak as f64 * ref_ratio)
-        } else {
-            threshold
-        };
+    // The near-reference count only lowers the threshold when it is under
+    // the reference's count, so the camera's motion is only measured then.
+    let threshold = if ctx.near_reference_count < reference_matches
+        && near_reference(frame, map, ctx.reference)
+    {
+        threshold.min(ctx.near_reference_count as f64 * ref_ratio)
+    } else {
+        threshold
+    };
     let c2 = (inliers < threshold || need_close) && ctx.inliers > 15;
     tracing::trace!(
         frame = frame.index,
         inliers = ctx.inliers,
         reference_matches,
-        reference_peak = ctx.reference_peak,
+        near_reference_count = ctx.near_reference_count,
         tracked_close,
         untracked_close,
         ?next_tracked_close,
@@ -292,7 +294,7 @@ pub(crate) fn needs_keyframe(
 }
 
 /// The count condition 2 compares with near the reference keyframe
-/// ([`KeyFrameContext::reference_peak`]) after a frame that tracked
+/// ([`KeyFrameContext::near_reference_count`]) after a frame that tracked
 /// `inliers` points with it: for a monocular camera the most inliers a
 /// frame has tracked with this reference, for stereo and RGB-D the
 /// keyframe's own inliers when it was made, not raised by later frames.
@@ -309,11 +311,11 @@ pub(crate) fn needs_keyframe(
 /// later), so its count rises as they come and the peak follows it: held
 /// at the keyframe's own count, the monocular kitchen made fewer keyframes,
 /// lost 23 more frames and started a second map.
-pub(crate) fn next_reference_peak(peak: usize, inliers: usize, sensor: Sensor) -> usize {
+pub(crate) fn next_near_reference_count(count: usize, inliers: usize, sensor: Sensor) -> usize {
     if sensor == Sensor::Monocular {
-        peak.max(inliers)
+        count.max(inliers)
     } else {
-        peak
+        count
     }
 }
 

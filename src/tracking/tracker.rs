@@ -9,7 +9,7 @@ use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
 use super::keyframe::{
-    initialise_map, insert_keyframe, needs_keyframe, next_reference_peak, KeyFrameContext,
+    initialise_map, insert_keyframe, needs_keyframe, next_near_reference_count, KeyFrameContext,
     KeyFrameDecision,
 };
 use super::local_map::track_local_map;
@@ -81,8 +81,8 @@ pub struct Tracker {
     velocity: Option<Se3>,
     reference: Option<KeyFrameId>,
     /// The count condition 2 compares with near the reference keyframe
-    /// (its own inliers when it was inserted; see [`next_reference_peak`]).
-    reference_peak: Option<(KeyFrameId, usize)>,
+    /// (its own inliers when it was inserted; see [`next_near_reference_count`]).
+    near_reference_count: Option<(KeyFrameId, usize)>,
     last_keyframe_frame: usize,
     last_relocalisation_frame: Option<usize>,
     /// Index of the first frame of the current loss.
@@ -122,7 +122,7 @@ impl Tracker {
             last_relative: None,
             velocity: None,
             reference: None,
-            reference_peak: None,
+            near_reference_count: None,
             last_keyframe_frame: 0,
             last_relocalisation_frame: None,
             lost_since: None,
@@ -220,7 +220,7 @@ impl Tracker {
             let mut map = self.timed(|| map.write())?;
             let (kf, created) = insert_keyframe(&mut frame, &mut map, &self.rig)?;
             self.reference = Some(kf);
-            self.reference_peak = Some((kf, outcome.inliers));
+            self.near_reference_count = Some((kf, outcome.inliers));
             self.last_keyframe_frame = frame.index;
             outcome.new_keyframe = Some((kf, created));
             outcome.relative_pose = Some((kf, Se3::identity()));
@@ -359,12 +359,12 @@ impl Tracker {
         // What condition 2 compares with near the reference: the
         // keyframe's own inliers when tracking made it, else (a reference
         // chosen by the local map or a relocalisation) the last frame's;
-        // `next_reference_peak` raises it for a monocular camera.
-        let (wants_keyframe, reference_peak) = match self.reference {
+        // `next_near_reference_count` raises it for a monocular camera.
+        let (wants_keyframe, near_reference_count) = match self.reference {
             None => (KeyFrameDecision::default(), None),
             Some(reference) => {
-                let peak = match self.reference_peak {
-                    Some((kf, peak)) if kf == reference => peak,
+                let count = match self.near_reference_count {
+                    Some((kf, count)) if kf == reference => count,
                     _ => self
                         .last_frame
                         .as_ref()
@@ -372,7 +372,7 @@ impl Tracker {
                 };
                 let ctx = KeyFrameContext {
                     reference,
-                    reference_peak: peak,
+                    near_reference_count: count,
                     last_keyframe_frame: self.last_keyframe_frame,
                     last_relocalisation_frame: self.last_relocalisation_frame,
                     inliers,
@@ -381,11 +381,11 @@ impl Tracker {
                     velocity: self.velocity,
                 };
                 let decision = needs_keyframe(&frame, map, &self.rig, &ctx);
-                let peak = next_reference_peak(peak, inliers, self.rig.sensor);
-                (decision, Some((reference, peak)))
+                let count = next_near_reference_count(count, inliers, self.rig.sensor);
+                (decision, Some((reference, count)))
             }
         };
-        self.reference_peak = reference_peak;
+        self.near_reference_count = near_reference_count;
         let relative_pose = self.relative_to_reference(&frame, map)?;
         let outcome = TrackOutcome {
             state: self.state,
