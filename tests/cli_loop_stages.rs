@@ -30,18 +30,22 @@ fn logs(output: &std::process::Output) -> String {
     )
 }
 
-#[test]
-fn every_loop_candidate_is_recorded_with_its_counts_and_judged() {
-    if !common::model_available("every_loop_candidate_is_recorded_with_its_counts_and_judged") {
-        return;
-    }
-    let dir = TempDir::new("loop-stages", "lap");
+/// A synthetic scene written by `spslam synth` with `synth_args` into a
+/// fresh folder, then `spslam run --inline-mapping --record-loop-stages`
+/// over it (`dataset`: the `--dataset` value from the folder) with
+/// `run_args`: the run's `report.json` and its output.
+fn synth_and_run(
+    tag: &str,
+    synth_args: &[&str],
+    dataset: impl Fn(&std::path::Path) -> String,
+    run_args: &[&str],
+) -> (serde_json::Value, String, TempDir) {
+    let dir = TempDir::new("loop-stages", tag);
     let synth = spslam()
         .arg("synth")
         .arg("--out")
         .arg(dir.path())
-        .args(["--scene", "loop", "--size", "320x240", "--focal", "200"])
-        .arg("--no-depth")
+        .args(synth_args)
         .output()
         .expect("run spslam synth");
     assert!(synth.status.success(), "{}", logs(&synth));
@@ -49,23 +53,40 @@ fn every_loop_candidate_is_recorded_with_its_counts_and_judged() {
     let run = spslam()
         .arg("run")
         .arg("--dataset")
-        .arg(format!("synth:{}", dir.path().display()))
-        .args([
-            "--inline-mapping",
-            "--levels",
-            "1",
-            "--record-loop-stages",
-            "--out",
-        ])
+        .arg(dataset(dir.path()))
+        .args(["--inline-mapping", "--record-loop-stages"])
+        .args(run_args)
+        .arg("--out")
         .arg(&out)
         .output()
         .expect("run spslam run");
     assert_eq!(run.status.code(), Some(0), "{}", logs(&run));
     let text = std::fs::read_to_string(out.join("report.json")).expect("report.json written");
-    let report: serde_json::Value = serde_json::from_str(&text).expect("report.json parses");
+    let report = serde_json::from_str(&text).expect("report.json parses");
+    (report, logs(&run), dir)
+}
 
+#[test]
+fn every_loop_candidate_is_recorded_with_its_counts_and_judged() {
+    if !common::model_available("every_loop_candidate_is_recorded_with_its_counts_and_judged") {
+        return;
+    }
+    let (report, run_logs, _dir) = synth_and_run(
+        "lap",
+        &[
+            "--scene",
+            "loop",
+            "--size",
+            "320x240",
+            "--focal",
+            "200",
+            "--no-depth",
+        ],
+        |dir| format!("synth:{}", dir.display()),
+        &["--levels", "1"],
+    );
     let loops = report["loops"].as_array().expect("loops");
-    assert!(!loops.is_empty(), "the lap closes no loop: {}", logs(&run));
+    assert!(!loops.is_empty(), "the lap closes no loop: {run_logs}");
     let candidates = report["loop_candidates"]
         .as_array()
         .expect("loop_candidates recorded");
@@ -111,28 +132,19 @@ fn a_look_alike_on_repeated_texture_is_stopped_by_the_drift_stage() {
     if !common::model_available("a_look_alike_on_repeated_texture_is_stopped_by_the_drift_stage") {
         return;
     }
-    let dir = TempDir::new("loop-stages", "repeated");
-    let synth = spslam()
-        .arg("synth")
-        .arg("--out")
-        .arg(dir.path())
-        .args(["--scene", "loop", "--condition", "repeated-texture"])
-        .args(["--frames", "40"])
-        .output()
-        .expect("run spslam synth");
-    assert!(synth.status.success(), "{}", logs(&synth));
-    let out = dir.path().join("run");
-    let run = spslam()
-        .arg("run")
-        .arg("--dataset")
-        .arg(format!("tum:{}", dir.path().join("sequences/00").display()))
-        .args(["--inline-mapping", "--record-loop-stages", "--out"])
-        .arg(&out)
-        .output()
-        .expect("run spslam run");
-    assert_eq!(run.status.code(), Some(0), "{}", logs(&run));
-    let text = std::fs::read_to_string(out.join("report.json")).expect("report.json written");
-    let report: serde_json::Value = serde_json::from_str(&text).expect("report.json parses");
+    let (report, _, _dir) = synth_and_run(
+        "repeated",
+        &[
+            "--scene",
+            "loop",
+            "--condition",
+            "repeated-texture",
+            "--frames",
+            "40",
+        ],
+        |dir| format!("tum:{}", dir.join("sequences/00").display()),
+        &[],
+    );
 
     // The run never revisits a place: no loop may be closed.
     let loops = report["loops"].as_array().expect("loops");
