@@ -8,7 +8,8 @@ count stage of the check and was judged by the drift stage (a loop in a map
 with a metric scale): the correction it asked for, the way travelled since
 the candidate, the correction over the path, what drift allows there at the
 default thresholds, the verdict and the ground truth's. Candidates of merges
-(no way travelled) and monocular runs carry no drift record and are left out.
+(no way travelled) carry no drift record and are left out; a monocular run's
+translation is not judged (allowed: inf).
 
     python3 tools/loop_drift_records.py --suite out/suite --prefix loopcheck_
 """
@@ -25,11 +26,14 @@ DRIFT_FLOOR_DEG = 20.0
 
 
 def allowed(travel):
-    """What drift explains after `travel`: (metres, degrees)."""
-    return (
-        max(DRIFT_FLOOR_DEPTHS * travel["scene_depth_m"], MAX_DRIFT_RATIO * travel["path_m"]),
-        max(DRIFT_FLOOR_DEG, MAX_DRIFT_RATIO * travel["turned_deg"]),
-    )
+    """What drift explains after `travel`: (metres, degrees); any translation
+    for a map without a metric scale (monocular)."""
+    metres = float("inf")
+    if travel.get("metric", True):
+        metres = max(
+            DRIFT_FLOOR_DEPTHS * travel["scene_depth_m"], MAX_DRIFT_RATIO * travel["path_m"]
+        )
+    return (metres, max(DRIFT_FLOOR_DEG, MAX_DRIFT_RATIO * travel["turned_deg"]))
 
 
 def rows(suite, prefix):

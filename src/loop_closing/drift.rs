@@ -1,5 +1,5 @@
 //! Whether a loop's correction can be drift: the last stage of a loop
-//! candidate's check for a map with a metric scale (stereo, RGB-D).
+//! candidate's check.
 //!
 //! A loop corrects the drift accumulated since the camera last saw the
 //! place, and drift grows with the way travelled. A candidate that passes
@@ -15,8 +15,9 @@
 //! 0.008 rad or the yaw by more than 0.349 rad (20°). A visual map has no
 //! gravity; the way travelled is what bounds its drift.
 //!
-//! Monocular maps are not judged: their scale drifts, so a true loop's
-//! correction can be of the order of the way travelled.
+//! A monocular map's correction is judged by its rotation only: its scale
+//! drifts, so a true loop's translation can be of the order of the way
+//! travelled, but a rotation is the same at any scale.
 
 use crate::camera::CameraRig;
 use crate::map::{KeyFrameId, Map};
@@ -44,10 +45,20 @@ pub struct Travel {
     pub turned_deg: f64,
     /// The query keyframe's median scene depth (metres; 0 without points).
     pub scene_depth_m: f64,
+    /// Whether the map's lengths are metres (stereo, RGB-D); a monocular
+    /// map's are not, and its correction's translation is not judged.
+    #[serde(default = "metric_by_default")]
+    pub metric: bool,
 }
 
-/// The way travelled from keyframe `from` to keyframe `to` in `map`
-/// (`None` when either is not a live keyframe of it).
+/// Records written before [`Travel::metric`] existed were all metric.
+fn metric_by_default() -> bool {
+    true
+}
+
+/// The way travelled from keyframe `from` to keyframe `to` in `map`, a
+/// map with a metric scale (`None` when either is not a live keyframe of
+/// it).
 pub fn travel_between(map: &Map, from: KeyFrameId, to: KeyFrameId) -> Option<Travel> {
     map.keyframe(from).ok()?;
     map.keyframe(to).ok()?;
@@ -68,23 +79,25 @@ pub fn travel_between(map: &Map, from: KeyFrameId, to: KeyFrameId) -> Option<Tra
         path_m,
         turned_deg,
         scene_depth_m: map.median_scene_depth(to).unwrap_or(0.0),
+        metric: true,
     })
 }
 
 /// What a loop check judges the correction of `candidate` for `query` by
-/// (the one place that decides which loops are judged): the way travelled
-/// between them in `map` for a rig with metric depth; `None` for a
-/// monocular rig, whose scale drifts (see the module's docs).
+/// (the one place that decides how loops are judged): the way travelled
+/// between them in `map`, metric for a rig with depth; a monocular rig's
+/// scale drifts, so only its turns count (see the module's docs).
 pub fn loop_travel(
     map: &Map,
     candidate: KeyFrameId,
     query: KeyFrameId,
     rig: &CameraRig,
 ) -> Option<Travel> {
-    rig.sensor
-        .has_depth()
-        .then(|| travel_between(map, candidate, query))
-        .flatten()
+    let travel = travel_between(map, candidate, query)?;
+    Some(Travel {
+        metric: rig.sensor.has_depth(),
+        ..travel
+    })
 }
 
 /// A candidate's correction next to the way travelled since the candidate:
@@ -116,11 +129,17 @@ impl LoopDrift {
     /// [`LoopThresholds::max_drift_ratio`] of the way travelled (path,
     /// turn). The translation's floor is
     /// [`LoopThresholds::drift_floor_depths`] of the scene's depth, the
-    /// rotation's [`LoopThresholds::drift_floor_deg`].
+    /// rotation's [`LoopThresholds::drift_floor_deg`]; a map without a
+    /// metric scale allows any translation.
     pub fn allowed(&self, th: &LoopThresholds) -> (f64, f64) {
         let t = &self.travel;
+        let metres = if t.metric {
+            (th.drift_floor_depths * t.scene_depth_m).max(th.max_drift_ratio * t.path_m)
+        } else {
+            f64::INFINITY
+        };
         (
-            (th.drift_floor_depths * t.scene_depth_m).max(th.max_drift_ratio * t.path_m),
+            metres,
             th.drift_floor_deg.max(th.max_drift_ratio * t.turned_deg),
         )
     }
@@ -164,6 +183,7 @@ mod tests {
             path_m,
             turned_deg,
             scene_depth_m,
+            metric: true,
         }
     }
 
@@ -238,5 +258,20 @@ mod tests {
         let whole = travel_between(&map, ids[0], ids[3]).expect("live keyframes");
         assert!((whole.path_m - 6.0).abs() < 1e-9);
         assert!(travel_between(&map, ids[0], KeyFrameId(999)).is_none());
+    }
+
+    #[test]
+    fn a_monocular_correction_is_judged_by_its_rotation_only() {
+        let th = LoopThresholds::default();
+        let way = Travel {
+            metric: false,
+            ..travel(26.0, 90.0, 8.0)
+        };
+        // Any translation (the scale drifts)…
+        let moved = LoopDrift::measure(way, &pose_at(0.0, 0.0), &pose_at(500.0, 5.0));
+        assert!(moved.excess(&th) < 1.0);
+        // …but not a quarter turn after one corner.
+        let turned = LoopDrift::measure(way, &pose_at(0.0, 0.0), &pose_at(0.0, 90.0));
+        assert!(turned.excess(&th) > 1.0);
     }
 }

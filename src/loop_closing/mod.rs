@@ -13,7 +13,7 @@
 //!   the detector's (shared) database;
 //! - [`verify_candidate`]: one candidate's check, stage by stage;
 //! - [`LoopDrift`]: its last stage in the detector, whether the correction
-//!   can be drift (maps with a metric scale);
+//!   can be drift;
 //! - [`MergeDetector`]: the same check against the older maps of the
 //!   atlas (map merging; the merge itself is `Map::absorb` then
 //!   [`correct_loop`]);

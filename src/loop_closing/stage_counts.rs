@@ -28,7 +28,7 @@ pub enum LoopStage {
     /// Too few inliers after the second search by projection.
     Reprojection,
     /// Every count passed, but the correction is more than drift explains
-    /// ([`LoopDrift::excess`]; maps with a metric scale only).
+    /// ([`LoopDrift::excess`]; a monocular map's rotation only).
     Drift,
     /// Verified, but not confirmed by enough keyframes.
     Confirmation,
@@ -50,7 +50,7 @@ pub struct LoopStageCounts {
     /// Inliers after the second search (3 px) and the last optimisation.
     pub reprojection_inliers: Option<usize>,
     /// The correction the last pose asks for next to the way travelled
-    /// since the candidate (`None`: no pose, a merge, or a monocular map).
+    /// since the candidate (`None`: no pose, or a merge).
     #[serde(default)]
     pub drift: Option<LoopDrift>,
 }
@@ -196,6 +196,7 @@ mod tests {
                 path_m: 100.0,
                 turned_deg: 90.0,
                 scene_depth_m: 10.0,
+                metric: true,
             },
         };
         let allowed_m = th.max_drift_ratio * 100.0;

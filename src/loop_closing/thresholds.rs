@@ -49,12 +49,12 @@ pub struct LoopThresholds {
     pub min_reprojection_inliers: usize,
     /// The largest correction, as a fraction of the way travelled since
     /// the candidate (path in metres, turns in degrees), that drift
-    /// explains for a map with a metric scale (not in ORB-SLAM3 for visual
+    /// explains; a monocular map's turns only (not in ORB-SLAM3 for visual
     /// maps; its inertial maps reject a loop that turns gravity: see
     /// [`super::LoopDrift`]). Chosen from `spslam evaluate --set loopcheck`
-    /// (EVALUATION.md, "A plausibility gate for loop corrections"): every
-    /// loop the standard set closed right corrected at most 0.9% of its
-    /// path, the repeated-texture false loops 43% and 87%.
+    /// (EVALUATION.md, "A plausibility gate for loop corrections"): the
+    /// right loops there corrected at most 0.51 % of their path, the
+    /// repeated-texture look-alikes asked for 87 % and 91 %.
     pub max_drift_ratio: f64,
     /// The translation a correction may have however short the way: this
     /// fraction of the query's median scene depth (a keyframe's position is

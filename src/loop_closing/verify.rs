@@ -1,10 +1,9 @@
 //! The geometric check of one loop candidate (ORB-SLAM3's
 //! `DetectCommonRegionsFromBoW` for a stereo map, scale fixed): descriptor
 //! matches with the candidate's group, a RANSAC pose, pose optimisation,
-//! two searches by projection; for the loop detector's checks on a map
-//! with a metric scale, last, whether the correction can be drift
-//! ([`super::drift`]). Read only: it works on a [`Frame`] made from the
-//! query keyframe.
+//! two searches by projection; for the loop detector's checks, last,
+//! whether the correction can be drift ([`super::drift`]). Read only: it
+//! works on a [`Frame`] made from the query keyframe.
 
 use std::collections::BTreeSet;
 

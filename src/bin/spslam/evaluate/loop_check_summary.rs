@@ -213,7 +213,7 @@ pub fn markdown(rows: &[LoopCheckRow]) -> String {
     let _ = writeln!(
         md,
         "Every loop and merge candidate of the runs made with `--record-loop-stages`, checked through every stage, judged by where the check registered the candidate camera against the ground truth (right: within 1 m; wrong: beyond 3 m; between: not counted; monocular runs are not judged). \
-         A candidate *passes* when every stage passes: the geometric ones in ORB-SLAM3's order, then, for runs with a metric scale, the correction against the way travelled (`max_drift_ratio`; 1000000 turns it off); a loop then still needs three confirming keyframes, which these tables do not model. \
+         A candidate *passes* when every stage passes: the geometric ones in ORB-SLAM3's order, then the correction against the way travelled (for monocular runs its rotation only) (`max_drift_ratio`; 1000000 turns it off); a loop then still needs three confirming keyframes, which these tables do not model. \
          Cells: right + wrong candidates passing (query keyframes with a right one).\n"
     );
     let _ = writeln!(
@@ -389,6 +389,7 @@ mod tests {
                 path_m: 26.0,
                 turned_deg: 90.0,
                 scene_depth_m: 8.0,
+                metric: true,
             },
         });
         let with_far = [candidates.as_slice(), &[far]].concat();
