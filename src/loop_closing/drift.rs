@@ -101,7 +101,7 @@ pub fn loop_travel(
 }
 
 /// A candidate's correction next to the way travelled since the candidate:
-/// what the check's last stage judges ([`LoopDrift::exceeds`]).
+/// what the check's last stage judges ([`LoopDrift::excess`]).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LoopDrift {
     /// How far the correction moves the query's camera centre (metres).
