@@ -18,7 +18,7 @@ use super::bundle_problem::build_map_bundle;
 /// Covisible keyframes optimised at most (beyond the new one), the most
 /// covisible first.
 pub const MAX_LOCAL_KEYFRAMES: usize = 20;
-/// Fixed keyframes at most (see [`snapshot_bundle`]'s window).
+/// Fixed keyframes at most (see `snapshot_bundle`'s window).
 pub const MAX_FIXED_KEYFRAMES: usize = 20;
 
 /// What one local BA did.
