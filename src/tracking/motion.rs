@@ -70,12 +70,24 @@ impl MotionModelFit {
     pub fn is_doubtful(&self) -> bool {
         2 * self.inliers < self.matches
     }
+
+    /// ORB-SLAM3 needs 10 inliers; a prediction far off (a turn starting)
+    /// also finds many wrong matches in its windows, so spslam requires
+    /// the inliers to be at least a quarter of them too.
+    pub fn is_accepted(&self) -> bool {
+        self.inliers >= MIN_POSE_INLIERS && 4 * self.inliers >= self.matches
+    }
 }
+
+/// Inliers a refined pose needs (ORB-SLAM3's `TrackWithMotionModel` and
+/// `TrackReferenceKeyFrame`: 10).
+pub(crate) const MIN_POSE_INLIERS: usize = 10;
 
 /// ORB-SLAM3's `TrackWithMotionModel`: predicts the pose from the last
 /// frame's and the velocity, searches the last frame's points around their
 /// projections (window 7·scale, then twice that), then refines the pose.
-/// The fit when at least 10 inliers, and a quarter of the matches, remain.
+/// The fit whenever 20 matches were found; the caller accepts it by
+/// [`MotionModelFit::is_accepted`].
 pub(crate) fn track_with_motion_model(
     frame: &mut Frame,
     last: &Frame,
@@ -103,10 +115,7 @@ pub(crate) fn track_with_motion_model(
     }
     let inliers = refine_pose(frame, map, rig)?;
     tracing::debug!(frame = frame.index, matches, inliers, "motion model");
-    // ORB-SLAM3 needs 10 inliers; a prediction far off (a turn starting)
-    // also finds many wrong matches in its windows, so spslam requires the
-    // inliers to be at least a quarter of them too.
-    Ok((inliers >= 10 && 4 * inliers >= matches).then_some(MotionModelFit { matches, inliers }))
+    Ok(Some(MotionModelFit { matches, inliers }))
 }
 
 /// ORB-SLAM3's `TrackReferenceKeyFrame`, with descriptor matching (ratio
@@ -215,9 +224,9 @@ fn track_by_descriptors(
                 frame.pose_cw = kept_pose;
                 frame.map_points = kept_points;
             } else {
-                return Ok(from_pnp >= 10);
+                return Ok(from_pnp >= MIN_POSE_INLIERS);
             }
         }
     }
-    Ok(from_last >= 10)
+    Ok(from_last >= MIN_POSE_INLIERS)
 }
