@@ -1,0 +1,82 @@
+//! The dim lap's third corner in RGB-D: `spslam synth --scene loop
+//! --condition low-light` (a quarter of the light, shot and read noise),
+//! 640×480 as in the suite's `loop_lowlight_rgbd_sp_anms`, its first 146
+//! frames, `spslam run --inline-mapping` with SuperPoint + ANMS (the
+//! defaults: int8, one level).
+//!
+//! At frame 139, in the turn, the motion model kept 27 of its 149 matches
+//! (Intel Xeon, VNNI): fewer than the quarter spslam asks of it, so it was
+//! rejected; the reference keyframe then gave 15 local-map inliers and the
+//! last frame none, and the frame was lost, then 140–143, and a second
+//! map was started at frame 144 (the suite's run: 227 of 232 frames, the
+//! map merged back only at the end of the lap). Local-map tracking from the
+//! rejected pose finds 53 inliers: tracking now tries it last
+//! (`src/tracking/tracker.rs`, `RejectedPrediction`), and every frame is
+//! tracked in one map.
+
+mod common;
+
+use common::temp_dir::TempDir;
+use std::process::Command;
+
+/// Frames run: to just past the third corner (frames 134–143).
+const FRAMES: usize = 146;
+
+fn spslam() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_spslam"))
+}
+
+fn logs(output: &std::process::Output) -> String {
+    format!(
+        "stdout:\n{}\nstderr:\n{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    )
+}
+
+#[test]
+fn the_dim_laps_third_corner_is_tracked_in_one_map_in_rgbd() {
+    if !common::model_available("the_dim_laps_third_corner_is_tracked_in_one_map_in_rgbd") {
+        return;
+    }
+    let dir = TempDir::new("low-light-corner", "rgbd");
+    let frames = FRAMES.to_string();
+    let synth = spslam()
+        .args(["synth", "--scene", "loop", "--condition", "low-light"])
+        .args(["--frames", &frames, "--out"])
+        .arg(dir.path())
+        .output()
+        .expect("run spslam synth");
+    assert!(synth.status.success(), "{}", logs(&synth));
+    let out = dir.path().join("run");
+    let dataset = format!("tum:{}", dir.path().join("sequences/00").display());
+    let run = spslam()
+        .args(["run", "--dataset", &dataset, "--inline-mapping"])
+        .args(["--extractor", "superpoint", "--anms", "kdtree", "--out"])
+        .arg(&out)
+        .output()
+        .expect("run spslam run");
+    assert_eq!(run.status.code(), Some(0), "{}", logs(&run));
+    let text = std::fs::read_to_string(out.join("report.json")).expect("report.json written");
+    let report: serde_json::Value = serde_json::from_str(&text).expect("report.json parses");
+    let records = report["frames"].as_array().expect("per-frame records");
+    assert_eq!(records.len(), FRAMES, "{}", logs(&run));
+    let lost: Vec<u64> = records
+        .iter()
+        .filter(|r| r["state"] != "Ok")
+        .filter_map(|r| r["index"].as_u64())
+        .collect();
+    let maps: std::collections::BTreeSet<u64> =
+        records.iter().filter_map(|r| r["map"].as_u64()).collect();
+    let corner: Vec<String> = records[134..144]
+        .iter()
+        .map(|r| format!("{}: {} {}", r["index"], r["method"], r["inliers"]))
+        .collect();
+    eprintln!("lost {lost:?}; maps {maps:?}; the corner: {corner:?}");
+    assert!(
+        lost.is_empty(),
+        "frames not tracked: {lost:?}\n{}",
+        logs(&run)
+    );
+    assert_eq!(maps.len(), 1, "frames in maps {maps:?}");
+}
