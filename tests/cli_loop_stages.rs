@@ -15,20 +15,8 @@
 
 mod common;
 
+use common::cli::{logs, spslam};
 use common::temp_dir::TempDir;
-use std::process::Command;
-
-fn spslam() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_spslam"))
-}
-
-fn logs(output: &std::process::Output) -> String {
-    format!(
-        "stdout:\n{}\nstderr:\n{}",
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    )
-}
 
 /// A synthetic scene written by `spslam synth` with `synth_args` into a
 /// fresh folder, then `spslam run --inline-mapping --record-loop-stages`

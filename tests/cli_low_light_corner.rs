@@ -16,23 +16,11 @@
 
 mod common;
 
+use common::cli::{logs, spslam};
 use common::temp_dir::TempDir;
-use std::process::Command;
 
 /// Frames run: to just past the third corner (frames 134–143).
 const FRAMES: usize = 146;
-
-fn spslam() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_spslam"))
-}
-
-fn logs(output: &std::process::Output) -> String {
-    format!(
-        "stdout:\n{}\nstderr:\n{}",
-        String::from_utf8_lossy(&output.stdout),
-        String::from_utf8_lossy(&output.stderr)
-    )
-}
 
 #[test]
 fn the_dim_laps_third_corner_is_tracked_in_one_map_in_rgbd() {

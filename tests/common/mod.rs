@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+pub mod cli;
 pub mod disk_cache;
 pub mod feature_cache;
 pub mod map_files;
