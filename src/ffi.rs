@@ -535,6 +535,8 @@ unsafe fn config_from_c(c: &SpslamConfig) -> Result<ExtractorConfig, FfiError> {
             lattice_min_support: p.lattice_min_support as usize,
             min_contrast: p.min_contrast,
             contrast_radius: p.contrast_radius as usize,
+            // Not part of the C struct (its layout is the ABI): the default.
+            max_phase_share: PeriodicFilterConfig::default().max_phase_share,
         },
         // Not part of the C struct (its layout is the ABI): the default.
         exposure: Default::default(),

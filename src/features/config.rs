@@ -60,6 +60,14 @@ pub struct PeriodicFilterConfig {
     pub min_contrast: f32,
     /// Half-size r of the contrast window, in pixels.
     pub contrast_radius: usize,
+    /// Phase-excess rejection: after NMS, a sub-cell phase (x mod 8,
+    /// y mod 8) that holds more than this many times its uniform share
+    /// (1/64) of a pass's candidates, and more than
+    /// [`PHASE_EXCESS_SIGMAS`](super::periodic::PHASE_EXCESS_SIGMAS)
+    /// binomial standard deviations above it, loses all its candidates:
+    /// the artefact scattered over noisy, dim images, where no lattice of
+    /// neighbouring cells forms. 0 disables this part.
+    pub max_phase_share: f32,
 }
 
 impl Default for PeriodicFilterConfig {
@@ -69,6 +77,7 @@ impl Default for PeriodicFilterConfig {
             lattice_min_support: 1,
             min_contrast: 5.0,
             contrast_radius: 4,
+            max_phase_share: 3.0,
         }
     }
 }
@@ -238,6 +247,14 @@ impl ExtractorConfig {
                 "periodic_filter.min_contrast",
                 p.min_contrast,
                 "a number >= 0",
+            ));
+        }
+        if !(p.max_phase_share == 0.0 || (p.max_phase_share.is_finite() && p.max_phase_share > 1.0))
+        {
+            return Err(bad(
+                "periodic_filter.max_phase_share",
+                p.max_phase_share,
+                "0 (off) or a number > 1",
             ));
         }
         if p.contrast_radius == 0 || p.contrast_radius > 32 {

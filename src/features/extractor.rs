@@ -11,7 +11,7 @@ use super::image::MIN_IMAGE_SIDE;
 use super::model::{fill_padded_input_stretched, SuperPointModel};
 use super::nms::{nms_candidates, ValidRegion};
 use super::orientation::{CircularPatch, PATCH_SIZE};
-use super::periodic::{reject_low_contrast, LatticeMask};
+use super::periodic::{reject_excess_phases, reject_low_contrast, LatticeMask};
 use super::pyramid::{build_pyramid, ScaleTables};
 use super::{
     Device, ExtractorConfig, FeatureError, Features, GrayImageView, Keypoint, PeriodicFilterConfig,
@@ -363,6 +363,9 @@ impl DetectionPass<'_> {
             ..*filter
         };
         reject_low_contrast(&mut candidates, image, &contrast_filter);
+        if filter.enabled {
+            reject_excess_phases(&mut candidates, filter.max_phase_share);
+        }
         Detection {
             low_contrast_rejected: before - candidates.len(),
             lattice_cells: mask.suppressed_cells(),
