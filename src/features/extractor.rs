@@ -25,6 +25,8 @@ pub struct PeriodicFilterReport {
     pub lattice_cells: usize,
     /// Candidates dropped for low contrast, over all levels.
     pub low_contrast_rejected: usize,
+    /// Candidates dropped on an excess sub-cell phase, over all levels.
+    pub excess_phase_rejected: usize,
 }
 
 /// Reusable buffers, so repeated extractions do not allocate anew.
@@ -266,6 +268,7 @@ impl SuperPointExtractor {
             }
             report.low_contrast_rejected += detection.low_contrast_rejected;
             report.lattice_cells += detection.lattice_cells;
+            report.excess_phase_rejected += detection.excess_phase_rejected;
             let candidates = detection.candidates;
             timings.decode_nms_ms += ms(t);
 
@@ -330,6 +333,7 @@ struct DetectionPass<'a> {
 struct Detection {
     candidates: Vec<Candidate>,
     low_contrast_rejected: usize,
+    excess_phase_rejected: usize,
     lattice_cells: usize,
 }
 
@@ -363,11 +367,15 @@ impl DetectionPass<'_> {
             ..*filter
         };
         reject_low_contrast(&mut candidates, image, &contrast_filter);
-        if filter.enabled {
-            reject_excess_phases(&mut candidates, filter.max_phase_share);
-        }
+        let low_contrast_rejected = before - candidates.len();
+        let excess_phase_rejected = if filter.enabled {
+            reject_excess_phases(&mut candidates, filter.max_phase_share)
+        } else {
+            0
+        };
         Detection {
-            low_contrast_rejected: before - candidates.len(),
+            low_contrast_rejected,
+            excess_phase_rejected,
             lattice_cells: mask.suppressed_cells(),
             candidates,
         }

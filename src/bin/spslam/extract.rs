@@ -97,8 +97,8 @@ pub fn run_extract(args: ExtractArgs) -> Result<()> {
         let gain = extractor.last_exposure().gain;
         if extractor.config().periodic_filter.enabled {
             println!(
-                "  periodic filter: {} lattice cells cleared, {} low-contrast candidates rejected; exposure gain {gain:.2}",
-                filter.lattice_cells, filter.low_contrast_rejected
+                "  periodic filter: {} lattice cells cleared, {} low-contrast and {} excess-phase candidates rejected; exposure gain {gain:.2}",
+                filter.lattice_cells, filter.low_contrast_rejected, filter.excess_phase_rejected
             );
         } else if extractor.model_has_grid_artefact() {
             println!("  periodic filter: off; exposure gain {gain:.2}");

