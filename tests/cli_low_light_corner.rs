@@ -12,10 +12,8 @@
 //! map merged back only at the end of the lap). Local-map tracking from the
 //! rejected pose finds 53 inliers: tracking now tries it last
 //! (`src/tracking/tracker.rs`, `RejectedPrediction`), and every frame is
-//! tracked in one map. Since the periodic filter's phase-excess rejection
-//! (`src/features/periodic.rs`) the motion model itself tracks frame 139
-//! (43 local-map inliers): the test now guards the corner, whichever start
-//! carries it.
+//! tracked in one map. (With the periodic filter's phase-excess rejection
+//! turned on, off by default, the motion model itself tracks frame 139.)
 
 mod common;
 

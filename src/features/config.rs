@@ -66,7 +66,10 @@ pub struct PeriodicFilterConfig {
     /// [`PHASE_EXCESS_SIGMAS`](super::periodic::PHASE_EXCESS_SIGMAS)
     /// binomial standard deviations above it, loses all its candidates:
     /// the artefact scattered over noisy, dim images, where no lattice of
-    /// neighbouring cells forms. 0 disables this part.
+    /// neighbouring cells forms. 0 (the default) disables this part; 3 is
+    /// the measured setting (EVALUATION.md, "Phase-excess rejection on dim
+    /// laps"), not the default because it also moves tracking on the
+    /// repeated-texture lap's first corner.
     pub max_phase_share: f32,
 }
 
@@ -77,7 +80,7 @@ impl Default for PeriodicFilterConfig {
             lattice_min_support: 1,
             min_contrast: 5.0,
             contrast_radius: 4,
-            max_phase_share: 3.0,
+            max_phase_share: 0.0,
         }
     }
 }

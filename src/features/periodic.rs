@@ -20,7 +20,8 @@
 //! 3. **Phase-excess rejection** ([`reject_excess_phases`]). On dim, noisy
 //!    images the artefact is scattered over cells too far apart for a
 //!    lattice; a sub-cell phase holding far more than its uniform share of
-//!    the candidates loses them all.
+//!    the candidates loses them all. Off by default
+//!    (`max_phase_share` 0).
 
 use ndarray::ArrayView2;
 
