@@ -91,4 +91,16 @@ fn bad_arguments_fail_with_a_message() {
         .output()
         .unwrap();
     assert!(!out.status.success());
+
+    // The phase-excess rule takes 0 (off) or a share above 1.
+    let out = spslam()
+        .args(["extract", "x.png", "--max-phase-share", "0.5"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("max_phase_share") && stderr.contains("0 (off) or a number > 1"),
+        "{stderr}"
+    );
 }

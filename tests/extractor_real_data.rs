@@ -3,8 +3,8 @@
 
 mod common;
 
+use common::phase_statistics::PhaseComparison;
 use common::*;
-use spslam::features::periodic::dominant_phase_fraction;
 use spslam::features::{
     AnmsMethod, ExposureConfig, ExtractorConfig, Features, GrayImage, PeriodicFilterConfig,
 };
@@ -139,27 +139,10 @@ fn periodic_filter_removes_the_dominant_sub_cell_phase() {
     assert_eq!(euroc.len(), 95);
     let euroc: Vec<_> = euroc.into_iter().step_by(3).collect();
     for (name, paths) in [("KITTI 06", kitti), ("EuRoC V1_01", euroc)] {
-        let (mut before, mut after) = (vec![], vec![]);
-        let (mut n_before, mut n_after) = (0, 0);
-        for path in &paths {
-            let image = load(path.clone());
-            let f_off = off.extract(image.view()).unwrap();
-            let f_on = on.extract(image.view()).unwrap();
-            n_before += f_off.len();
-            n_after += f_on.len();
-            before.extend(f_off.keypoints.iter().map(|k| (k.x, k.y)));
-            after.extend(f_on.keypoints.iter().map(|k| (k.x, k.y)));
-        }
-        let (fb, pb) = dominant_phase_fraction(before);
-        let (fa, pa) = dominant_phase_fraction(after);
-        println!(
-            "{name} ({} frames): most common sub-cell phase before {pb:?} {:.1}%, after {pa:?} {:.1}%; keypoints/frame {:.0} -> {:.0}",
-            paths.len(),
-            100.0 * fb,
-            100.0 * fa,
-            n_before as f64 / paths.len() as f64,
-            n_after as f64 / paths.len() as f64
-        );
+        let c = PhaseComparison::measure(&mut off, &mut on, paths.iter().map(|p| load(p.clone())));
+        println!("{}", c.describe(name));
+        let (fa, pa) = (c.share_with, c.phase_with);
+        let (n_before, n_after) = (c.keypoints_without, c.keypoints_with);
         assert!(
             fa <= 0.05,
             "{name}: {:.1}% of keypoints on phase {pa:?} after the filter",

@@ -72,7 +72,7 @@ fn spslam_keys_and_defaults() {
     let text = "%YAML:1.0\nCamera.fx: 400.0\nCamera.fy: 400.0\nCamera.cx: 320.0\nCamera.cy: 240.0\n\
                 SuperPoint.anms: \"ssc\"\nSuperPoint.model: \"models/sp.onnx\"\nTracking.maxDepth: 20.0\n\
                 SuperPoint.precision: \"int8\"\nSuperPoint.device: \"cpu\"\n\
-                RGBD.DepthMapFactor: 5000.0\n";
+                SuperPoint.maxPhaseShare: 3.0\nRGBD.DepthMapFactor: 5000.0\n";
     let path = write("ours.yaml", text);
     let s = SlamSettings::from_file(&path).expect("spslam keys");
     assert_eq!(s.extractor.anms, AnmsMethod::Ssc);
@@ -82,6 +82,10 @@ fn spslam_keys_and_defaults() {
     assert_eq!(
         (config.precision, config.device),
         (Precision::Int8, Device::Cpu)
+    );
+    assert_eq!(
+        config.periodic_filter.max_phase_share, 3.0,
+        "SuperPoint.maxPhaseShare reaches the periodic filter"
     );
     assert_eq!(
         s.extractor.model.as_deref(),
@@ -201,6 +205,18 @@ fn bad_files_give_typed_errors_that_name_the_key() {
         );
         assert!(e.to_string().contains(accepted), "{e}");
     }
+    let share = error_for(
+        "phase.yaml",
+        &format!("{OLD_LAYOUT}SuperPoint.maxPhaseShare: 0.5\n"),
+    );
+    assert!(
+        matches!(&share, SettingsError::Invalid { key, .. } if key == "SuperPoint.maxPhaseShare"),
+        "{share}"
+    );
+    assert!(
+        share.to_string().contains("0 (off) or a number > 1"),
+        "{share}"
+    );
 }
 
 #[test]

@@ -99,7 +99,7 @@ pub fn reject_excess_phases(candidates: &mut Vec<Candidate>, max_phase_share: f3
     let limit = (mean * f64::from(max_phase_share))
         .max(mean + PHASE_EXCESS_SIGMAS * (n * p * (1.0 - p)).sqrt())
         .max(PHASE_EXCESS_MIN_COUNT - 0.5);
-    let excess: Vec<bool> = counts.iter().map(|&c| c as f64 > limit).collect();
+    let excess = counts.map(|c| c as f64 > limit);
     if !excess.contains(&true) {
         return 0;
     }

