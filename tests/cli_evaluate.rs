@@ -293,7 +293,7 @@ fn update_doc_replaces_only_the_generated_block() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains(begin));
 }
 
-/// The shipped case list parses, every case of the standard set is
+/// The shipped case lists parse, every case of the standard set is
 /// listed, every `$DATA` folder it names exists, and EVALUATION.md holds
 /// the generated block.
 #[test]
@@ -303,6 +303,20 @@ fn the_shipped_case_list_and_evaluation_md_are_well_formed() {
     let data = common::shared_data_root();
     let list = evaluate(&cases, dir.path(), &data, &["--set", "all", "--list"]);
     assert!(list.status.success(), "{}", logs(&list));
+    // The other case lists beside it (the phase-excess sweep) parse too.
+    let others = std::fs::read_dir(repo().join("suite"))
+        .expect("suite/")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p != &cases && p.extension().is_some_and(|x| x == "txt"));
+    for other in others {
+        let list = evaluate(&other, dir.path(), &data, &["--set", "all", "--list"]);
+        assert!(
+            list.status.success() && !list.stdout.is_empty(),
+            "{}: {}",
+            other.display(),
+            logs(&list)
+        );
+    }
     let standard = evaluate(&cases, dir.path(), &data, &["--set", "standard", "--list"]);
     let count = String::from_utf8_lossy(&standard.stdout).lines().count();
     assert!(count >= 20, "the standard set has {count} cases");

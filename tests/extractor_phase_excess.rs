@@ -53,7 +53,7 @@ fn the_dim_laps_excess_phases_are_removed_and_the_keypoint_count_kept() {
     let (fb, fa, pa) = (c.share_without, c.share_with, c.phase_with);
     let (n_before, n_after) = (c.keypoints_without, c.keypoints_with);
     // Measured (int8, 11 frames; the same on an Intel Xeon with VNNI and
-    // an AMD EPYC with AVX2 only): without the rule phase
+    // an AMD EPYC with AVX-512 VNNI): without the rule phase
     // (2, 1) holds 7.5 %, with it the most common phase (1, 1) 3.8 % (real
     // images: 2.4–3.2 %); 993 -> 897 keypoints per frame, the rest being
     // too few candidates off the excess phases. Bounds: the artefact at

@@ -209,28 +209,39 @@ fn error_of(r: &RunRow) -> Option<(f64, &'static str)> {
     }
 }
 
-/// Who wins a group and by how much, in words.
+/// Who wins a group and by how much, in words. Runs are named by their
+/// extractor, or by their case where a group holds several runs of one
+/// extractor (a parameter sweep).
 pub fn verdict(rows: &[&RunRow]) -> String {
     let mut sorted: Vec<&RunRow> = rows.to_vec();
     sorted.sort_by(|a, b| better(a, b));
     let [best, runner_up, ..] = sorted.as_slice() else {
         return "one extractor only".into();
     };
+    let sweep = |r: &RunRow| rows.iter().filter(|o| o.extractor == r.extractor).count() > 1;
+    let named = |r: &RunRow| -> String {
+        if sweep(r) {
+            r.case.clone()
+        } else {
+            r.extractor.clone()
+        }
+    };
+    let (best_name, runner_up_name) = (named(best), named(runner_up));
     let false_links = |r: &RunRow| r.false_links.unwrap_or(0);
     if false_links(best) != false_links(runner_up) {
         return format!(
             "{} ({} made {} false loop or merge)",
-            best.extractor,
-            runner_up.extractor,
+            best_name,
+            runner_up_name,
             false_links(runner_up) - false_links(best)
         );
     }
     if best.tracked != runner_up.tracked {
         return format!(
             "{} (tracks {} more frames than {})",
-            best.extractor,
+            best_name,
             best.tracked - runner_up.tracked,
-            runner_up.extractor
+            runner_up_name
         );
     }
     match (best.ate_m, runner_up.ate_m) {
@@ -239,12 +250,12 @@ pub fn verdict(rows: &[&RunRow]) -> String {
             if percent < 5.0 {
                 format!(
                     "tie: {} and {} within 5 % ({percent:.1} %)",
-                    best.extractor, runner_up.extractor
+                    best_name, runner_up_name
                 )
             } else {
                 format!(
                     "{} ({percent:.0} % lower ATE than {})",
-                    best.extractor, runner_up.extractor
+                    best_name, runner_up_name
                 )
             }
         }
@@ -252,18 +263,32 @@ pub fn verdict(rows: &[&RunRow]) -> String {
     }
 }
 
-fn cell(row: Option<&&RunRow>) -> String {
-    match row {
-        None => "–".into(),
-        Some(r) => {
-            let error = match error_of(r) {
-                Some((ate, "ATE")) => format!("{ate:.4}"),
-                Some((drift, _)) => format!("drift {drift:.2} %"),
-                None => "n/a".into(),
-            };
-            format!("{error} ({}/{}, {} KF)", r.tracked, r.frames, r.keyframes)
-        }
-    }
+/// One extractor's cell in a group's row: its run, or the best of its runs
+/// (named) where the group holds several.
+fn cell(in_group: &[&RunRow], extractor: &str) -> String {
+    let mut runs: Vec<&RunRow> = in_group
+        .iter()
+        .copied()
+        .filter(|r| r.extractor == extractor)
+        .collect();
+    runs.sort_by(|a, b| better(a, b));
+    let Some(r) = runs.first() else {
+        return "–".into();
+    };
+    let error = match error_of(r) {
+        Some((ate, "ATE")) => format!("{ate:.4}"),
+        Some((drift, _)) => format!("drift {drift:.2} %"),
+        None => "n/a".into(),
+    };
+    let of = if runs.len() > 1 {
+        format!("; best of {} runs: {}", runs.len(), r.case)
+    } else {
+        String::new()
+    };
+    format!(
+        "{error} ({}/{}, {} KF{of})",
+        r.tracked, r.frames, r.keyframes
+    )
 }
 
 /// Distinct values of one field, joined.
@@ -295,13 +320,12 @@ pub fn markdown(rows: &[RunRow], missing: &[MissingRun], set: &str) -> String {
     let _ = writeln!(md, "|---|---|---|---|---|");
     for group in &group_order(rows) {
         let in_group: Vec<&RunRow> = rows.iter().filter(|r| r.group == *group).collect();
-        let find = |name: &str| in_group.iter().find(|r| r.extractor == name);
         let _ = writeln!(
             md,
             "| {group} | {} | {} | {} | {} |",
-            cell(find(EXTRACTORS[0])),
-            cell(find(EXTRACTORS[1])),
-            cell(find(EXTRACTORS[2])),
+            cell(&in_group, EXTRACTORS[0]),
+            cell(&in_group, EXTRACTORS[1]),
+            cell(&in_group, EXTRACTORS[2]),
             verdict(&in_group)
         );
     }
@@ -489,6 +513,29 @@ mod tests {
             verdict(&[&wrong, &sp]),
             "SuperPoint + ANMS (ORB made 1 false loop or merge)"
         );
+    }
+
+    #[test]
+    fn a_sweep_names_its_runs_by_case_and_its_cell_shows_the_best() {
+        let mut off = row("SuperPoint + ANMS", 100, 1.1434);
+        off.case = "lowlight_share0".into();
+        let mut on = row("SuperPoint + ANMS", 100, 0.1979);
+        on.case = "lowlight_share3".into();
+        let orb = row("ORB", 100, 0.276);
+        assert_eq!(
+            verdict(&[&off, &on, &orb]),
+            "lowlight_share3 (28 % lower ATE than ORB)"
+        );
+        assert_eq!(
+            verdict(&[&off, &on]),
+            "lowlight_share3 (83 % lower ATE than lowlight_share0)"
+        );
+        assert_eq!(
+            cell(&[&off, &on, &orb], "SuperPoint + ANMS"),
+            "0.1979 (100/100, 10 KF; best of 2 runs: lowlight_share3)"
+        );
+        assert_eq!(cell(&[&off, &on, &orb], "ORB"), "0.2760 (100/100, 10 KF)");
+        assert_eq!(cell(&[&orb], "SuperPoint"), "–");
     }
 
     #[test]
