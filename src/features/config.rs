@@ -73,6 +73,14 @@ pub struct PeriodicFilterConfig {
     pub max_phase_share: f32,
 }
 
+impl PeriodicFilterConfig {
+    /// What [`max_phase_share`](Self::max_phase_share) accepts: 0 (off) or
+    /// a finite share above 1. Settings files and the CLI check with this.
+    pub fn is_valid_max_phase_share(share: f64) -> bool {
+        share == 0.0 || (share.is_finite() && share > 1.0)
+    }
+}
+
 impl Default for PeriodicFilterConfig {
     fn default() -> Self {
         Self {
@@ -252,8 +260,7 @@ impl ExtractorConfig {
                 "a number >= 0",
             ));
         }
-        if !(p.max_phase_share == 0.0 || (p.max_phase_share.is_finite() && p.max_phase_share > 1.0))
-        {
+        if !PeriodicFilterConfig::is_valid_max_phase_share(f64::from(p.max_phase_share)) {
             return Err(bad(
                 "periodic_filter.max_phase_share",
                 p.max_phase_share,

@@ -373,7 +373,7 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
     });
     let max_phase_share = match reader.optional_f64(&["SuperPoint.maxPhaseShare"])? {
         None => defaults.max_phase_share,
-        Some(v) if v == 0.0 || (v.is_finite() && v > 1.0) => v as f32,
+        Some(v) if PeriodicFilterConfig::is_valid_max_phase_share(v) => v as f32,
         Some(v) => {
             return Err(reader.invalid(
                 "SuperPoint.maxPhaseShare",
