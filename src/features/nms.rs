@@ -22,7 +22,13 @@ pub struct ValidRegion {
 ///
 /// Ties between equal scores go to the first pixel in raster order, so each
 /// plateau yields one candidate. The candidate's `score` is the raw network
-/// score (the adjustment only decides which pixels survive).
+/// score (the adjustment only decides which pixels survive). A NaN score is
+/// never a candidate and suppresses nothing.
+///
+/// The window is clipped to the map, `adjust` is only called on neighbours
+/// whose raw score could beat the pixel's, and a pixel's 3×3 neighbourhood
+/// is checked before its whole window, so that only the 3×3 maxima pay for
+/// a large radius.
 pub fn nms_candidates(
     scores: ArrayView2<'_, f32>,
     adjust: impl Fn(usize, usize, f32) -> f32,
@@ -37,49 +43,88 @@ pub fn nms_candidates(
     if x_end <= region.border || y_end <= region.border {
         return out;
     }
-    let adjusted = |x: usize, y: usize| adjust(x, y, scores[[y, x]]);
-    let r = radius as isize;
+    // Row-major and contiguous (a copy only when the caller's view is not).
+    let contiguous = scores.as_standard_layout();
+    let Some(values) = contiguous.as_slice() else {
+        debug_assert!(false, "a standard-layout array is a slice");
+        return out;
+    };
+    let survivors = SurvivingScores {
+        values,
+        rows,
+        cols,
+        adjust,
+        threshold,
+    };
     for y in region.border..y_end {
-        let row = scores.row(y);
         for x in region.border..x_end {
-            let raw = row[x];
-            if raw <= threshold {
+            let s = survivors.at(x, y);
+            if s == f32::NEG_INFINITY {
                 continue;
             }
-            let s = adjust(x, y, raw);
-            if s <= threshold {
+            if survivors.is_beaten_within(x, y, s, radius.min(1))
+                || (radius > 1 && survivors.is_beaten_within(x, y, s, radius))
+            {
                 continue;
             }
-            let mut is_max = true;
-            'window: for dy in -r..=r {
-                let ny = y as isize + dy;
-                if ny < 0 || ny >= rows as isize {
-                    continue;
-                }
-                for dx in -r..=r {
-                    let nx = x as isize + dx;
-                    if nx < 0 || nx >= cols as isize || (dx == 0 && dy == 0) {
-                        continue;
-                    }
-                    let n = adjusted(nx as usize, ny as usize);
-                    // Strictly greater wins; an equal neighbour wins when it comes first in raster order.
-                    let earlier = dy < 0 || (dy == 0 && dx < 0);
-                    if n > s || (n == s && earlier) {
-                        is_max = false;
-                        break 'window;
-                    }
-                }
-            }
-            if is_max {
-                out.push(Candidate {
-                    x: x as f32,
-                    y: y as f32,
-                    score: raw,
-                });
-            }
+            out.push(Candidate {
+                x: x as f32,
+                y: y as f32,
+                score: values[y * cols + x],
+            });
         }
     }
     out
+}
+
+/// The adjusted scores of the pixels that can win or suppress (adjusted
+/// score above the threshold); every other pixel reads `-inf`. A pixel at or
+/// below the threshold can neither be a maximum nor beat one that is above
+/// it, so `adjust` is only called above the threshold.
+struct SurvivingScores<'a, F> {
+    /// The raw scores, row-major.
+    values: &'a [f32],
+    rows: usize,
+    cols: usize,
+    adjust: F,
+    threshold: f32,
+}
+
+impl<F: Fn(usize, usize, f32) -> f32> SurvivingScores<'_, F> {
+    fn at(&self, x: usize, y: usize) -> f32 {
+        let raw = self.values[y * self.cols + x];
+        if raw > self.threshold {
+            let s = (self.adjust)(x, y, raw);
+            if s > self.threshold {
+                return s;
+            }
+        }
+        f32::NEG_INFINITY
+    }
+
+    /// Whether a pixel of the (2r+1)² window around (x, y), clipped to the
+    /// map, beats score `s` at (x, y): strictly greater, or equal and
+    /// earlier in raster order.
+    fn is_beaten_within(&self, x: usize, y: usize, s: f32, r: usize) -> bool {
+        let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(self.cols));
+        let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(self.rows));
+        for ny in y0..y1 {
+            let row = &self.values[ny * self.cols + x0..ny * self.cols + x1];
+            for (nx, &raw) in (x0..x1).zip(row) {
+                // Cheap rejection before the adjustment: a neighbour at or
+                // below `s` in raw score cannot beat `s` after it.
+                if !(raw > s || (raw == s && (ny, nx) < (y, x))) {
+                    continue;
+                }
+                let n = self.at(nx, ny);
+                let earlier = ny < y || (ny == y && nx < x);
+                if n > s || (n == s && earlier) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
 }
 
 #[cfg(test)]
@@ -87,8 +132,12 @@ mod tests {
     use super::*;
     use ndarray::Array2;
 
-    fn brute_force(
+    /// The definition, written out: every pixel of the region whose adjusted
+    /// score is above `thr` and that no pixel of its window beats (greater,
+    /// or equal and earlier in raster order). NaN compares false both ways.
+    fn brute_force_adjusted(
         scores: &Array2<f32>,
+        adjust: impl Fn(usize, usize, f32) -> f32,
         thr: f32,
         r: usize,
         region: ValidRegion,
@@ -97,14 +146,14 @@ mod tests {
         let mut out = vec![];
         for y in region.border..region.height - region.border {
             for x in region.border..region.width - region.border {
-                let s = scores[[y, x]];
-                if s <= thr {
+                let s = adjust(x, y, scores[[y, x]]);
+                if s.is_nan() || s <= thr {
                     continue;
                 }
                 let mut ok = true;
                 for ny in y.saturating_sub(r)..(y + r + 1).min(rows) {
                     for nx in x.saturating_sub(r)..(x + r + 1).min(cols) {
-                        let n = scores[[ny, nx]];
+                        let n = adjust(nx, ny, scores[[ny, nx]]);
                         let earlier = (ny, nx) < (y, x);
                         if (ny, nx) != (y, x) && (n > s || (n == s && earlier)) {
                             ok = false;
@@ -117,6 +166,15 @@ mod tests {
             }
         }
         out
+    }
+
+    fn brute_force(
+        scores: &Array2<f32>,
+        thr: f32,
+        r: usize,
+        region: ValidRegion,
+    ) -> Vec<(usize, usize)> {
+        brute_force_adjusted(scores, |_, _, s| s, thr, r, region)
     }
 
     #[test]
@@ -164,5 +222,48 @@ mod tests {
                 score: 0.8
             }]
         );
+    }
+
+    #[test]
+    fn matches_brute_force_with_large_radii_an_adjustment_and_nan() {
+        let mut state = 987654321u64;
+        let mut maxima = 0;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32
+        };
+        for trial in 0..24 {
+            let (rows, cols) = (16 + (next() % 50) as usize, 16 + (next() % 50) as usize);
+            let mut scores = Array2::from_shape_fn((rows, cols), |_| (next() % 32) as f32 / 32.0);
+            for _ in 0..3 {
+                let (y, x) = ((next() as usize) % rows, (next() as usize) % cols);
+                scores[[y, x]] = f32::NAN;
+            }
+            let region = ValidRegion {
+                width: cols - (trial % 3),
+                height: rows,
+                border: trial % 5,
+            };
+            // Lowers every score in the columns divisible by 3, as a lattice mask would.
+            let adjust = |x: usize, _: usize, s: f32| if x.is_multiple_of(3) { s * 0.5 } else { s };
+            let r = [0, 1, 2, 5, 17, 64][trial % 6];
+            // Odd trials pass a column-major view of the same map.
+            let transposed = scores.t().to_owned();
+            let view = if trial % 2 == 1 {
+                transposed.t()
+            } else {
+                scores.view()
+            };
+            let got: Vec<_> = nms_candidates(view, adjust, 0.3, r, region)
+                .iter()
+                .map(|c| (c.x as usize, c.y as usize))
+                .collect();
+            let want = brute_force_adjusted(&scores, adjust, 0.3, r, region);
+            assert_eq!(got, want, "trial {trial}, radius {r}");
+            maxima += want.len();
+        }
+        assert!(maxima > 100, "only {maxima} maxima compared");
     }
 }
