@@ -480,6 +480,7 @@ fn assert_kidnapped_run_merges(sequence: &SyntheticSequence, lap_frames: usize, 
         merge.match_frame
     );
     assert_eq!(kidnapped.live_maps, 1, "the run did not end as one map");
+    assert_merge_judged_by_the_handover(&kidnapped, merge, gap.start - 1);
     // Measured (Intel, VNNI): 0.0892 m, 0.033 % of the 270 m path (threaded:
     // 0.0902 m); merged at frame 228 with frame 0.
     assert!(
@@ -488,6 +489,42 @@ fn assert_kidnapped_run_merges(sequence: &SyntheticSequence, lap_frames: usize, 
         kidnapped.ate_tracked_m,
         kidnapped.path_m,
         reference.ate_tracked_m
+    );
+}
+
+/// The accepted merge into the map the camera was lost from (after frame
+/// `last_tracked`) was judged by where it puts the new map next to where
+/// the camera was lost: its measured gap is the true way between the two
+/// frames, and within what the stage allows.
+fn assert_merge_judged_by_the_handover(run: &Run, merge: &MergeRecord, last_tracked: usize) {
+    let judged = run
+        .candidates
+        .iter()
+        .filter(|c| c.query_frame == merge.query_frame && c.other_map == Some(merge.into_map))
+        .find(|c| c.rejected_at.is_none() && c.candidate_frame == merge.match_frame)
+        .unwrap_or_else(|| panic!("no record of the accepted merge's check"));
+    let gap = judged
+        .counts
+        .handover
+        .unwrap_or_else(|| panic!("the merge was not judged by the handover"));
+    let first = last_tracked + gap.frames;
+    let true_gap_m =
+        (run.truth[first].translation.vector - run.truth[last_tracked].translation.vector).norm();
+    let th = LoopThresholds::default();
+    eprintln!(
+        "handover: gap {:.2} m (true {true_gap_m:.2} m) over {} frames at {:.3} m/frame, drift path {:.1} m, depth {:.1} m; allowed {:.2} m",
+        gap.gap_m,
+        gap.frames,
+        gap.speed_m_per_frame,
+        gap.drift_path_m,
+        gap.scene_depth_m,
+        gap.allowed_m(&th)
+    );
+    assert!(gap.excess(&th) <= 1.0);
+    assert!(
+        (gap.gap_m - true_gap_m).abs() <= 0.05 * true_gap_m,
+        "measured gap {:.2} m, true {true_gap_m:.2} m",
+        gap.gap_m
     );
 }
 
@@ -525,8 +562,12 @@ fn a_kidnapped_run_with_mapping_and_loop_threads_merges_its_maps() {
         threaded.live_maps,
         threaded.lost.len(),
     );
-    assert!(!threaded.merges.is_empty(), "the maps were not merged");
+    let merge = threaded
+        .merges
+        .first()
+        .unwrap_or_else(|| panic!("the maps were not merged"));
     assert_eq!(threaded.live_maps, 1, "the run did not end as one map");
+    assert_merge_judged_by_the_handover(&threaded, merge, gap.start - 1);
     assert!(
         threaded.lost.iter().all(|f| *f < gap.end + 10),
         "frames lost long after the gap: {:?}",

@@ -12,6 +12,10 @@
 //! the keyframes that verified the same map just before it (up to
 //! [`LoopThresholds::max_misses`] may fail in between).
 //!
+//! A merge into the map the camera was lost from has one more stage: the
+//! new map must land within reach of where that map lost the camera
+//! ([`HandoverGap`], the [`Handover`] given by [`MergeDetector::start_map`]).
+//!
 //! Read only on the maps: the caller merges them (`Map::absorb`, then the
 //! loop correction fuses the duplicates).
 
@@ -25,6 +29,7 @@ use crate::optim::{LieGroup, Se3};
 use crate::place::{KeyframeDatabase, QueryOptions};
 
 use super::detector::AcceptedLoop;
+use super::handover::{Handover, HandoverGap};
 use super::stage_counts::CandidateCheck;
 use super::streak::CandidateStreak;
 use super::thresholds::LoopThresholds;
@@ -63,6 +68,9 @@ pub struct MergeDetector {
     /// Verified keyframes of one target map (its atlas tag), waiting for
     /// enough of them.
     streak: Option<CandidateStreak<usize>>,
+    /// Where the camera was lost when the active map was started, while
+    /// that map is active.
+    handover: Option<Handover>,
 }
 
 impl std::fmt::Debug for MergeDetector {
@@ -70,6 +78,7 @@ impl std::fmt::Debug for MergeDetector {
         f.debug_struct("MergeDetector")
             .field("archived_maps", &self.archived.keys().collect::<Vec<_>>())
             .field("streak", &self.streak)
+            .field("handover", &self.handover)
             .finish()
     }
 }
@@ -81,6 +90,7 @@ impl MergeDetector {
             thresholds,
             archived: BTreeMap::new(),
             streak: None,
+            handover: None,
         }
     }
 
@@ -91,9 +101,18 @@ impl MergeDetector {
         }
     }
 
+    /// A new map became active: `handover` says where the camera was lost
+    /// in the map given up (`None`: not known, e.g. a loaded atlas), until
+    /// the next map starts or the active one is merged.
+    pub fn start_map(&mut self, handover: Option<Handover>) {
+        self.streak = None;
+        self.handover = handover;
+    }
+
     /// Takes an archived database back (its map became active again).
     pub fn take_archived(&mut self, tag: usize) -> Option<KeyframeDatabase<KeyFrameId>> {
         self.streak = None;
+        self.handover = None;
         self.archived.remove(&tag)
     }
 
@@ -106,6 +125,7 @@ impl MergeDetector {
     pub fn clear(&mut self) {
         self.archived.clear();
         self.streak = None;
+        self.handover = None;
     }
 
     /// Checks keyframe `kf` of the active map, with global descriptor
@@ -195,6 +215,37 @@ impl MergeDetector {
                 confirmations,
                 ..
             } = checked;
+            let t_target_active = correction.inverse();
+            if let Some(handover) = self.handover.filter(|h| h.from_map == tag) {
+                let gap = match read_archived(tag).transpose()? {
+                    Some(target) => HandoverGap::measure(
+                        &handover,
+                        &target,
+                        candidate,
+                        &*read_active()?,
+                        kf,
+                        &t_target_active,
+                    ),
+                    None => None,
+                };
+                if let Some((_, check)) = outcome.checks.last_mut() {
+                    check.counts.handover = gap;
+                    if let Some((stage, count)) = check.counts.first_failing(&th) {
+                        check.rejected_at = Some(stage);
+                        outcome.rejected.push((
+                            tag,
+                            RejectedCandidate {
+                                query: kf,
+                                candidate,
+                                score,
+                                stage,
+                                count,
+                            },
+                        ));
+                        continue;
+                    }
+                }
+            }
             let earlier = self
                 .streak
                 .as_ref()
@@ -217,7 +268,7 @@ impl MergeDetector {
             self.streak = None;
             outcome.accepted = Some(AcceptedMerge {
                 target: tag,
-                t_target_active: correction.inverse(),
+                t_target_active,
                 common: AcceptedLoop::from_verified(kf, verified, total),
             });
             return Ok(outcome);

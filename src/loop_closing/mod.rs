@@ -29,6 +29,7 @@ mod detector;
 mod drift;
 mod essential_graph;
 mod global_ba;
+mod handover;
 mod merge;
 mod relocalisation;
 mod stage_counts;
@@ -50,6 +51,7 @@ pub use global_ba::{
     apply_global_ba, snapshot_global_ba, solve_global_ba, GlobalBaSnapshot, GlobalBaSummary,
     SolvedGlobalBa, GLOBAL_BA_ITERATIONS,
 };
+pub use handover::{median_speed, Handover, HandoverGap};
 pub use merge::{AcceptedMerge, MergeDetector, MergeOutcome};
 pub use relocalisation::{DatabaseRelocaliser, RELOCALISATION_CANDIDATES};
 pub use stage_counts::{CandidateCheck, LoopStage, LoopStageCounts};

@@ -11,6 +11,7 @@
 use crate::map::KeyFrameId;
 
 use super::drift::LoopDrift;
+use super::handover::HandoverGap;
 use super::thresholds::LoopThresholds;
 
 /// The stage at which a candidate failed.
@@ -30,6 +31,10 @@ pub enum LoopStage {
     /// Every count passed, but the correction is more than drift explains
     /// ([`LoopDrift::excess`]; a monocular map's rotation only).
     Drift,
+    /// A merge into the map the camera was lost from that passed every
+    /// other stage, but places the new map further from where the camera
+    /// was lost than it can have moved ([`HandoverGap::excess`]).
+    Handover,
     /// Verified, but not confirmed by enough keyframes.
     Confirmation,
 }
@@ -53,6 +58,11 @@ pub struct LoopStageCounts {
     /// since the candidate (`None`: no pose, or a merge).
     #[serde(default)]
     pub drift: Option<LoopDrift>,
+    /// A merge into the map the camera was lost from: where it puts the
+    /// new map next to where the camera was lost (`None`: a loop, a merge
+    /// into another map, or no pose).
+    #[serde(default)]
+    pub handover: Option<HandoverGap>,
 }
 
 impl LoopStageCounts {
@@ -65,7 +75,8 @@ impl LoopStageCounts {
     /// The first stage, in the check's order, whose threshold in `th` these
     /// counts fail, with the count reached there (0 for a stage that did
     /// not run; for [`LoopStage::Drift`], the correction in per cent of
-    /// what drift explains); `None` when every stage passes. The only place
+    /// what drift explains; for [`LoopStage::Handover`], the gap in per
+    /// cent of what a revisit explains); `None` when every stage passes. The only place
     /// that decides a candidate's verdict from its counts.
     pub fn first_failing(&self, th: &LoopThresholds) -> Option<(LoopStage, usize)> {
         if self.descriptor_matches < th.min_matches {
@@ -97,10 +108,16 @@ impl LoopStageCounts {
             let count = count.unwrap_or(0);
             (count < min).then_some((stage, count))
         });
-        counted.or_else(|| {
-            let excess = self.drift?.excess(th);
-            (excess > 1.0).then(|| (LoopStage::Drift, (100.0 * excess).round().min(1e9) as usize))
-        })
+        let percent = |excess: f64| (100.0 * excess).round().min(1e9) as usize;
+        counted
+            .or_else(|| {
+                let excess = self.drift?.excess(th);
+                (excess > 1.0).then(|| (LoopStage::Drift, percent(excess)))
+            })
+            .or_else(|| {
+                let excess = self.handover?.excess(th);
+                (excess > 1.0).then(|| (LoopStage::Handover, percent(excess)))
+            })
     }
 }
 
@@ -137,6 +154,7 @@ mod tests {
             projection_matches: Some(p),
             reprojection_inliers: Some(f),
             drift: None,
+            handover: None,
         }
     }
 
@@ -212,6 +230,32 @@ mod tests {
         // A count that fails comes first.
         assert_eq!(
             with(drift(2.0 * allowed_m), 79).first_failing(&th),
+            Some((LoopStage::Reprojection, 79))
+        );
+    }
+
+    #[test]
+    fn a_merge_too_far_from_the_handover_fails_last_and_only_then() {
+        let th = LoopThresholds::default();
+        let gap = |gap_m: f64| HandoverGap {
+            gap_m,
+            frames: 5,
+            speed_m_per_frame: 1.0,
+            drift_path_m: 0.0,
+            scene_depth_m: 0.0,
+        };
+        let allowed_m = th.max_handover_speedup * 5.0;
+        let with = |g: HandoverGap, f: usize| LoopStageCounts {
+            handover: Some(g),
+            ..counts(100, Some(90), 90, 150, f)
+        };
+        assert_eq!(with(gap(0.9 * allowed_m), 120).first_failing(&th), None);
+        assert_eq!(
+            with(gap(3.0 * allowed_m), 120).first_failing(&th),
+            Some((LoopStage::Handover, 300))
+        );
+        assert_eq!(
+            with(gap(3.0 * allowed_m), 79).first_failing(&th),
             Some((LoopStage::Reprojection, 79))
         );
     }

@@ -64,6 +64,13 @@ pub struct LoopThresholds {
     /// turned (degrees): ORB-SLAM3's bound on an inertial map's loop yaw
     /// (`LoopClosing::Run`: 0.349 rad).
     pub drift_floor_deg: f64,
+    /// How many times its speed before the loss (or in the new map, if
+    /// faster) the camera may have moved while lost, for a merge of the
+    /// map started after the loss into the map it left
+    /// ([`super::HandoverGap`]; not in ORB-SLAM3). 3 leaves room for a
+    /// camera that speeds up while it is lost; the repeated-texture lap's
+    /// false merge asked for 70 m where about 5 m had been covered.
+    pub max_handover_speedup: f64,
     /// Inliers needed by a covisible or a later keyframe to confirm the loop
     /// at the same correction (ORB-SLAM3's `DetectAndReffineSim3FromLastKF`:
     /// `nProjOptMatches = 50`).
@@ -101,6 +108,7 @@ impl Default for LoopThresholds {
             max_drift_ratio: 0.1,
             drift_floor_depths: 0.1,
             drift_floor_deg: 20.0,
+            max_handover_speedup: 3.0,
             min_confirmation_inliers: 50,
             confirmations: 3,
             confirming_covisibles: 5,

@@ -18,8 +18,8 @@ use std::collections::BTreeMap;
 
 use crate::error::MapContext;
 use crate::loop_closing::{
-    correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, CandidateCheck, LoopCorrection,
-    LoopDetector, LoopStage, LoopStageCounts, LoopThresholds, MergeDetector,
+    correct_loop, pose_difference, AcceptedLoop, AcceptedMerge, CandidateCheck, Handover,
+    LoopCorrection, LoopDetector, LoopStage, LoopStageCounts, LoopThresholds, MergeDetector,
     SharedKeyframeDatabase,
 };
 use crate::map::{KeyFrameId, Map, SharedMap};
@@ -211,11 +211,18 @@ impl LoopClosingStage {
     }
 
     /// Starts over on a new map: the database of the map left
-    /// (`finished`) is archived for merging, the queue emptied.
-    pub(crate) fn new_map(&mut self, finished: usize) -> Result<(), SlamError> {
+    /// (`finished`) is archived for merging, the queue emptied;
+    /// `handover` (where the camera was lost in `finished`) judges a merge
+    /// back into it.
+    pub(crate) fn new_map(
+        &mut self,
+        finished: usize,
+        handover: Option<Handover>,
+    ) -> Result<(), SlamError> {
         self.queue.clear();
         let database = self.detector.take_database()?;
         self.merger.archive(finished, database);
+        self.merger.start_map(handover);
         Ok(())
     }
 

@@ -415,9 +415,10 @@ impl SlamSystem {
             *mapper = mapper.fresh();
         }
         let finished = self.atlas.active().index;
+        let handover = self.handover(finished)?;
         let new_map = self.atlas.start_new_map(index);
         if let Some(stage) = self.inline_loop_stage() {
-            stage.new_map(finished)?;
+            stage.new_map(finished, handover)?;
         }
         tracing::info!(
             frame = index,

@@ -5,12 +5,16 @@
 use std::collections::BTreeMap;
 
 use crate::error::SlamError;
+use crate::loop_closing::{median_speed, Handover};
 use crate::optim::{LieGroup, Se3};
 use crate::tracking::{TrackingMethod, TrackingState};
 
 use super::atlas::MapIndex;
 use super::records::{FrameTimings, MapSummary, SlamSummary};
 use super::SlamSystem;
+
+/// Tracked frames the camera's speed at a handover is taken over.
+const HANDOVER_SPEED_FRAMES: usize = 10;
 
 impl SlamSystem {
     /// Every processed frame's camera-to-world pose `T_wc`, one row per
@@ -42,6 +46,43 @@ impl SlamSystem {
             return Ok(None);
         }
         Ok(self.anchored_poses()?.last().map(|(_, pose, _)| *pose))
+    }
+
+    /// Where the camera was when map `map` was given up: its last tracked
+    /// frame there (centre in that map's frame, reference keyframe) and
+    /// its speed over its last [`HANDOVER_SPEED_FRAMES`] tracked frames
+    /// there; `None` when no frame was tracked in it.
+    pub(super) fn handover(&self, map: MapIndex) -> Result<Option<Handover>, SlamError> {
+        let Some(entry) = self.atlas.get(map) else {
+            return Err(SlamError::UnknownAtlasMap { map });
+        };
+        let read = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
+        // (frame, centre, reference keyframe), newest first.
+        let mut track = Vec::with_capacity(HANDOVER_SPEED_FRAMES);
+        for record in self.records.iter().rev() {
+            let Some(rel) = record.relative_pose.filter(|r| r.map == map) else {
+                continue;
+            };
+            let Ok(kf_pose) = read.pose_cw_of(rel.keyframe) else {
+                continue;
+            };
+            let centre = rel.pose.compose(&kf_pose).inverse().translation;
+            track.push((record.index, centre, rel.keyframe));
+            if track.len() == HANDOVER_SPEED_FRAMES {
+                break;
+            }
+        }
+        let Some(&(last_frame, last_centre, last_keyframe)) = track.first() else {
+            return Ok(None);
+        };
+        let in_order: Vec<_> = track.iter().rev().map(|&(f, c, _)| (f, c)).collect();
+        Ok(Some(Handover {
+            from_map: map,
+            last_frame,
+            last_centre,
+            last_keyframe,
+            speed_m_per_frame: median_speed(&in_order),
+        }))
     }
 
     /// `(timestamp, T_wc, (map, anchor frame) for a map's first pose)` per record.

@@ -348,6 +348,7 @@ mod tests {
                 projection_matches: Some(p),
                 reprojection_inliers: Some(f),
                 drift: None,
+                handover: None,
             },
             truth,
         }
