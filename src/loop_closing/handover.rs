@@ -9,10 +9,11 @@
 //! maps can have drifted since; repeated texture can register a keyframe
 //! against the same pattern anywhere, with as many inliers as a true
 //! revisit (the repeated-texture RGB-D lap with the phase-excess rejection
-//! merged a map started at frame 100 into frame 2's place, 70 m away, with
-//! 146 inliers and three confirmations: EVALUATION.md, "Phase-excess
-//! rejection on dim laps"). This stage stops such a merge, as the drift
-//! stage ([`super::LoopDrift`]) stops a look-alike loop. ORB-SLAM3 does not
+//! merged a map into a place 70 m from the truth with 146 inliers and
+//! three confirmations: EVALUATION.md, "Phase-excess rejection on dim
+//! laps"). This stage stops such a merge when it goes back into the map
+//! just left, as the drift stage ([`super::LoopDrift`]) stops a
+//! look-alike loop. ORB-SLAM3 does not
 //! gate visual merges (`LoopClosing::NewDetectCommonRegions` accepts any
 //! merge its geometric checks confirm).
 //!

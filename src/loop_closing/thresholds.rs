@@ -68,8 +68,9 @@ pub struct LoopThresholds {
     /// faster) the camera may have moved while lost, for a merge of the
     /// map started after the loss into the map it left
     /// ([`super::HandoverGap`]; not in ORB-SLAM3). 3 leaves room for a
-    /// camera that speeds up while it is lost; the repeated-texture lap's
-    /// false merge asked for 70 m where about 5 m had been covered.
+    /// camera that speeds up while it is lost (a judgement, not fitted:
+    /// the kidnapped lap's true merge used 0.26 of the bound, EVALUATION.md,
+    /// "A handover stage for merges").
     pub max_handover_speedup: f64,
     /// Inliers needed by a covisible or a later keyframe to confirm the loop
     /// at the same correction (ORB-SLAM3's `DetectAndReffineSim3FromLastKF`:
