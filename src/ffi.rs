@@ -53,6 +53,37 @@ pub fn release_free_heap() -> bool {
     }
 }
 
+/// What glibc's heap holds (`mallinfo2`), MiB: what a resident-memory
+/// figure is made of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeapUsage {
+    /// Allocated and not yet freed (`uordblks + hblkhd`): the live heap.
+    pub in_use_mib: f64,
+    /// Freed, but kept by the allocator in its arenas for reuse
+    /// (`fordblks`); part of it may be resident.
+    pub free_held_mib: f64,
+}
+
+/// glibc's heap figures, over every arena; `None` where the C library is
+/// not glibc.
+pub fn heap_usage() -> Option<HeapUsage> {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        // SAFETY: `mallinfo2` takes no pointer and returns a plain struct;
+        // it only reads glibc's own arenas, under each arena's lock.
+        let info = unsafe { libc::mallinfo2() };
+        let mib = |bytes: usize| bytes as f64 / (1024.0 * 1024.0);
+        Some(HeapUsage {
+            in_use_mib: mib(info.uordblks) + mib(info.hblkhd),
+            free_held_mib: mib(info.fordblks),
+        })
+    }
+    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
+    {
+        None
+    }
+}
+
 /// The result of every fallible call.
 #[repr(i32)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

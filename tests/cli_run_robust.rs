@@ -380,3 +380,63 @@ fn help_documents_the_exit_codes() {
         assert!(help.contains(needle), "{needle} missing from\n{help}");
     }
 }
+
+#[test]
+fn memory_log_has_a_row_per_interval_with_the_heap_split() {
+    let (_shared, data) = copy_frames(FRAMES, "memory-log");
+    let out = TempDir::new("run-robust", "memory-log-out");
+    let csv = out.path().join("memory.csv");
+    let csv_arg = csv.display().to_string();
+    let output = run(
+        data.path(),
+        out.path(),
+        &["--memory-log", &csv_arg, "--memory-every", "5"],
+    );
+    assert!(output.status.success(), "{}", logs(&output));
+    let text = std::fs::read_to_string(&csv).expect("memory.csv written");
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some(
+            "frame,rss_mib,heap_in_use_mib,heap_free_held_mib,global_ba_running,\
+             keyframes,map_points,maps"
+        )
+    );
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.parse().expect("a number in memory.csv"))
+                .collect()
+        })
+        .collect();
+    // One row after each 5 frames of 20.
+    let frames: Vec<f64> = rows.iter().map(|r| r[0]).collect();
+    assert_eq!(frames, [5.0, 10.0, 15.0, 20.0]);
+    for row in &rows {
+        let [_, rss, in_use, free_held, global_ba, keyframes, points, maps] = row[..] else {
+            panic!("a row of 8 columns, got {row:?}");
+        };
+        // The process holds the ORB extractor, images and a map: tens of
+        // MiB resident, most of it the allocator's live heap.
+        assert!(rss > 10.0, "RSS {rss} MiB");
+        if cfg!(all(target_os = "linux", target_env = "gnu")) {
+            assert!(
+                in_use > 1.0 && in_use < 4.0 * rss,
+                "heap in use {in_use} MiB, RSS {rss}"
+            );
+            assert!(free_held >= 0.0, "freed heap {free_held} MiB");
+        }
+        assert!(
+            global_ba == 0.0 || global_ba == 1.0,
+            "global_ba_running {global_ba}"
+        );
+        assert!(
+            keyframes >= 1.0 && points >= 100.0 && maps == 1.0,
+            "{row:?}"
+        );
+    }
+    assert!(
+        out.path().join("memory.png").is_file(),
+        "the plot next to the CSV"
+    );
+}

@@ -54,7 +54,7 @@ def at(rows, frame):
 def block(run_dir: str) -> str:
     with open(f"{run_dir}/memory.csv") as f:
         rows = [
-            {k: (float(v) if k == "rss_mib" else int(v)) for k, v in r.items()}
+            {k: (float(v) if k.endswith("_mib") else int(v)) for k, v in r.items()}
             for r in csv.DictReader(f)
         ]
     with open(f"{run_dir}/report.json") as f:
@@ -96,7 +96,25 @@ def block(run_dir: str) -> str:
         f"({growth:+.1f} %), spread {spread:.1f} % (min {rss_tail_min:.0f}, max {rss_tail_max:.0f}); "
         f"keyframes {start['keyframes']} → {last['keyframes']}, map points {start['map_points']} → {last['map_points']}",
     ]
+    if "heap_in_use_mib" in last:
+        # The columns of `--memory-log` since session 33: what the resident
+        # memory is made of, and whether a global BA's working set is in it.
+        quiet = [r for r in tail if not r["global_ba_running"]]
+        busy = len(tail) - len(quiet)
+        lines.append(
+            f"- the same {len(tail)} samples: {spread_of(tail, 'heap_in_use_mib')} in the allocator's live heap, "
+            f"freed heap held {min(r['heap_free_held_mib'] for r in tail):.0f}–{max(r['heap_free_held_mib'] for r in tail):.0f} MiB; "
+            f"{busy} taken while a global BA ran; the {len(quiet)} others: RSS {spread_of(quiet, 'rss_mib')}"
+        )
     return "\n".join(lines)
+
+
+def spread_of(rows, key):
+    """`spread X % (min, max)` of one column over rows."""
+    if not rows:
+        return "no samples"
+    lo, hi = min(r[key] for r in rows), max(r[key] for r in rows)
+    return f"spread {100.0 * (hi - lo) / lo:.1f} % ({lo:.0f}–{hi:.0f} MiB)"
 
 
 def main():

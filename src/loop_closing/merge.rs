@@ -228,7 +228,13 @@ impl MergeDetector {
                     ),
                     None => None,
                 };
-                if let Some((_, check)) = outcome.checks.last_mut() {
+                // This candidate's record (`check_candidate` just wrote it).
+                let record = outcome
+                    .checks
+                    .iter_mut()
+                    .rev()
+                    .find(|(map, check)| *map == tag && check.candidate == candidate);
+                if let Some((_, check)) = record {
                     check.counts.handover = gap;
                     if let Some((stage, count)) = check.counts.first_failing(&th) {
                         check.rejected_at = Some(stage);

@@ -23,6 +23,12 @@ impl SlamSystem {
         &self.global_ba_runs
     }
 
+    /// Whether a global BA is under way on its thread (started, not yet
+    /// applied).
+    pub fn global_ba_running(&self) -> bool {
+        self.global_ba.is_some()
+    }
+
     /// Sets a hook run on the global BA's thread before its snapshot
     /// (tests plant a panic there to show that a failed global BA is
     /// reported and skipped); `None` removes it.

@@ -2,9 +2,9 @@
 
 use serde::Serialize;
 
-use crate::map::KeyFrameId;
+use crate::map::{KeyFrameId, Map};
 use crate::mapping::MappingSummary;
-use crate::optim::Se3;
+use crate::optim::{LieGroup, Se3};
 use crate::tracking::{TrackingMethod, TrackingState};
 
 use super::atlas::MapIndex;
@@ -35,6 +35,18 @@ pub struct RelativePose {
     pub keyframe: KeyFrameId,
     /// `T_c,ref`.
     pub pose: Se3,
+}
+
+impl RelativePose {
+    /// `T_map,c`: the camera's pose in its map now, through the reference
+    /// keyframe's current pose (or, when it was culled, the keyframe that
+    /// replaced it); `None` when `map` no longer reaches the keyframe. The
+    /// one place a record becomes a pose in its map, for the trajectory's
+    /// anchoring and a merge's handover.
+    pub fn camera_in_map(&self, map: &Map) -> Option<Se3> {
+        let keyframe_pose_cw = map.pose_cw_of(self.keyframe).ok()?;
+        Some(self.pose.compose(&keyframe_pose_cw).inverse())
+    }
 }
 
 /// What happened to one input frame.

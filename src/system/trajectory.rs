@@ -63,10 +63,10 @@ impl SlamSystem {
             let Some(rel) = record.relative_pose.filter(|r| r.map == map) else {
                 continue;
             };
-            let Ok(kf_pose) = read.pose_cw_of(rel.keyframe) else {
+            let Some(in_map) = rel.camera_in_map(&read) else {
                 continue;
             };
-            let centre = rel.pose.compose(&kf_pose).inverse().translation;
+            let centre = in_map.translation;
             track.push((record.index, centre, rel.keyframe));
             if track.len() == HANDOVER_SPEED_FRAMES {
                 break;
@@ -100,9 +100,7 @@ impl SlamSystem {
                     return Err(SlamError::UnknownAtlasMap { map: rel.map });
                 };
                 let map = entry.map.read().map_err(|_| SlamError::PoisonedMap)?;
-                if let Ok(kf_pose) = map.pose_cw_of(rel.keyframe) {
-                    // T_map,c
-                    let in_map = rel.pose.compose(&kf_pose).inverse();
+                if let Some(in_map) = rel.camera_in_map(&map) {
                     let loaded = entry.loaded;
                     let anchor = *anchors.entry(rel.map).or_insert_with(|| {
                         if loaded {

@@ -190,10 +190,11 @@ pub struct RunArgs {
     /// extents), xy, xz or yz.
     #[arg(long, value_enum, default_value_t = PlotPlaneChoice::Auto)]
     plot_plane: PlotPlaneChoice,
-    /// Write the resident memory and the atlas' size (keyframes, map
-    /// points, maps) every --memory-every frames to this CSV file, row by
-    /// row, and plot them next to it (same name, .png) at the end: for
-    /// long runs (`make soak`).
+    /// Write the resident memory, the allocator's live and freed-but-held
+    /// heap, whether a global BA is under way, and the atlas' size
+    /// (keyframes, map points, maps) every --memory-every frames to this
+    /// CSV file, row by row, and plot them next to it (same name, .png) at
+    /// the end: for long runs (`make soak`).
     #[arg(long)]
     memory_log: Option<PathBuf>,
     /// Frames between two --memory-log samples.

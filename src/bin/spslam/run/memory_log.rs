@@ -11,7 +11,8 @@ use spslam::eval::{write_line_panels, LinePanel, LineSeries};
 use spslam::system::SlamSystem;
 
 /// The CSV's header.
-const HEADER: &str = "frame,rss_mib,keyframes,map_points,maps";
+const HEADER: &str =
+    "frame,rss_mib,heap_in_use_mib,heap_free_held_mib,global_ba_running,keyframes,map_points,maps";
 
 /// One sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,6 +21,13 @@ pub struct MemorySample {
     pub frames: usize,
     /// Resident set size (`VmRSS`), MiB.
     pub rss_mib: f64,
+    /// The allocator's live heap (`NaN` where the C library is not glibc).
+    pub heap_in_use_mib: f64,
+    /// Heap freed but kept by the allocator (`NaN` where not glibc).
+    pub heap_free_held_mib: f64,
+    /// Whether a global BA was under way: its working set (the whole
+    /// map's problem) is then part of the resident memory.
+    pub global_ba_running: bool,
     /// Keyframes in every map of the atlas.
     pub keyframes: usize,
     /// Map points in every map of the atlas.
@@ -85,17 +93,28 @@ impl MemoryLog {
                 map_points += map.map_point_count();
             }
         }
+        let heap = spslam::ffi::heap_usage();
         let sample = MemorySample {
             frames,
             rss_mib: resident_mib().unwrap_or(f64::NAN),
+            heap_in_use_mib: heap.map_or(f64::NAN, |h| h.in_use_mib),
+            heap_free_held_mib: heap.map_or(f64::NAN, |h| h.free_held_mib),
+            global_ba_running: slam.global_ba_running(),
             keyframes,
             map_points,
             maps: maps.len(),
         };
         writeln!(
             self.file,
-            "{},{:.1},{},{},{}",
-            sample.frames, sample.rss_mib, sample.keyframes, sample.map_points, sample.maps
+            "{},{:.1},{:.1},{:.1},{},{},{},{}",
+            sample.frames,
+            sample.rss_mib,
+            sample.heap_in_use_mib,
+            sample.heap_free_held_mib,
+            u8::from(sample.global_ba_running),
+            sample.keyframes,
+            sample.map_points,
+            sample.maps
         )
         .and_then(|()| self.file.flush())
         .with_context(|| format!("cannot write {}", self.path.display()))?;
@@ -116,7 +135,11 @@ impl MemoryLog {
         let panels = [
             LinePanel {
                 y_label: "resident memory, MiB".into(),
-                series: vec![series("RSS", |s| s.rss_mib)],
+                series: vec![
+                    series("RSS", |s| s.rss_mib),
+                    series("heap in use", |s| s.heap_in_use_mib),
+                    series("heap freed, held", |s| s.heap_free_held_mib),
+                ],
             },
             LinePanel {
                 y_label: "keyframes".into(),
