@@ -399,7 +399,7 @@ fn memory_log_has_a_row_per_interval_with_the_heap_split() {
         lines.next(),
         Some(
             "frame,rss_mib,heap_in_use_mib,heap_free_held_mib,global_ba_running,\
-             keyframes,map_points,maps"
+             keyframes,map_points,maps,heap_release_ms"
         )
     );
     let rows: Vec<Vec<f64>> = lines
@@ -413,8 +413,9 @@ fn memory_log_has_a_row_per_interval_with_the_heap_split() {
     let frames: Vec<f64> = rows.iter().map(|r| r[0]).collect();
     assert_eq!(frames, [5.0, 10.0, 15.0, 20.0]);
     for row in &rows {
-        let [_, rss, in_use, free_held, global_ba, keyframes, points, maps] = row[..] else {
-            panic!("a row of 8 columns, got {row:?}");
+        let [_, rss, in_use, free_held, global_ba, keyframes, points, maps, release_ms] = row[..]
+        else {
+            panic!("a row of 9 columns, got {row:?}");
         };
         // The process holds the ORB extractor, images and a map: tens of
         // MiB resident, most of it the allocator's live heap.
@@ -430,6 +431,9 @@ fn memory_log_has_a_row_per_interval_with_the_heap_split() {
             global_ba == 0.0 || global_ba == 1.0,
             "global_ba_running {global_ba}"
         );
+        // The hand-back runs every 100 frames and after a global BA:
+        // neither in 20 frames.
+        assert_eq!(release_ms, 0.0);
         assert!(
             keyframes >= 1.0 && points >= 100.0 && maps == 1.0,
             "{row:?}"

@@ -54,7 +54,7 @@ def at(rows, frame):
 def block(run_dir: str) -> str:
     with open(f"{run_dir}/memory.csv") as f:
         rows = [
-            {k: (float(v) if k.endswith("_mib") else int(v)) for k, v in r.items()}
+            {k: (float(v) if k.endswith(("_mib", "_ms")) else int(v)) for k, v in r.items()}
             for r in csv.DictReader(f)
         ]
     with open(f"{run_dir}/report.json") as f:
@@ -96,16 +96,33 @@ def block(run_dir: str) -> str:
         f"({growth:+.1f} %), spread {spread:.1f} % (min {rss_tail_min:.0f}, max {rss_tail_max:.0f}); "
         f"keyframes {start['keyframes']} → {last['keyframes']}, map points {start['map_points']} → {last['map_points']}",
     ]
+    steady = tail
+    if last["frame"] == report["frames_total"] and len(tail) > 2:
+        # After the last frame the extraction stage has ended and freed its
+        # networks: that sample is the run's end, not its steady state.
+        steady = tail[:-1]
+        lines.append(
+            f"- without the sample after the last frame (the extraction stage had ended and freed its "
+            f"networks: RSS {last['rss_mib']:.0f} MiB): RSS {spread_of(steady, 'rss_mib')}; "
+            f"keyframes {min(r['keyframes'] for r in steady)}–{max(r['keyframes'] for r in steady)}"
+        )
     if "heap_in_use_mib" in last:
         # The columns of `--memory-log` since session 33: what the resident
         # memory is made of, and whether a global BA's working set is in it.
-        quiet = [r for r in tail if not r["global_ba_running"]]
-        busy = len(tail) - len(quiet)
+        quiet = [r for r in steady if not r["global_ba_running"]]
+        busy = len(steady) - len(quiet)
         lines.append(
-            f"- the same {len(tail)} samples: {spread_of(tail, 'heap_in_use_mib')} in the allocator's live heap, "
-            f"freed heap held {min(r['heap_free_held_mib'] for r in tail):.0f}–{max(r['heap_free_held_mib'] for r in tail):.0f} MiB; "
+            f"- those {len(steady)} samples: the allocator's live heap {spread_of(steady, 'heap_in_use_mib')}, "
+            f"freed heap held {min(r['heap_free_held_mib'] for r in steady):.0f}–{max(r['heap_free_held_mib'] for r in steady):.0f} MiB; "
             f"{busy} taken while a global BA ran; the {len(quiet)} others: RSS {spread_of(quiet, 'rss_mib')}"
         )
+    if "heap_release_ms" in last:
+        times = sorted(r["heap_release_ms"] for r in rows if r["heap_release_ms"] > 0)
+        if times:
+            lines.append(
+                f"- freed heap handed back (every 100 frames and after each global BA): "
+                f"median {times[len(times) // 2]:.1f} ms, max {times[-1]:.1f} ms per 100 frames"
+            )
     return "\n".join(lines)
 
 

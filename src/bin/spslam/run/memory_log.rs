@@ -12,7 +12,7 @@ use spslam::system::SlamSystem;
 
 /// The CSV's header.
 const HEADER: &str =
-    "frame,rss_mib,heap_in_use_mib,heap_free_held_mib,global_ba_running,keyframes,map_points,maps";
+    "frame,rss_mib,heap_in_use_mib,heap_free_held_mib,global_ba_running,keyframes,map_points,maps,heap_release_ms";
 
 /// One sample.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -34,6 +34,9 @@ pub struct MemorySample {
     pub map_points: usize,
     /// Maps in the atlas (merged ones included: they are still held).
     pub maps: usize,
+    /// How long the freed heap's hand-backs since the previous sample took
+    /// (ms; `spslam::ffi::release_free_heap`).
+    pub heap_release_ms: f64,
 }
 
 /// The open log.
@@ -42,6 +45,8 @@ pub struct MemoryLog {
     file: File,
     every: usize,
     samples: Vec<MemorySample>,
+    /// Hand-back time since the last sample (ms).
+    release_ms: f64,
 }
 
 /// The process's resident set size in MiB (`VmRSS` of `/proc/self/status`),
@@ -74,7 +79,14 @@ impl MemoryLog {
             file,
             every: every.max(1),
             samples: Vec::new(),
+            release_ms: 0.0,
         })
+    }
+
+    /// Counts one hand-back of freed heap that took `ms`; the next sample
+    /// reports the sum.
+    pub fn heap_released(&mut self, ms: f64) {
+        self.release_ms += ms;
     }
 
     /// Takes a sample when `frames` (processed so far) is a multiple of the
@@ -103,10 +115,11 @@ impl MemoryLog {
             keyframes,
             map_points,
             maps: maps.len(),
+            heap_release_ms: std::mem::take(&mut self.release_ms),
         };
         writeln!(
             self.file,
-            "{},{:.1},{:.1},{:.1},{},{},{},{}",
+            "{},{:.1},{:.1},{:.1},{},{},{},{},{:.2}",
             sample.frames,
             sample.rss_mib,
             sample.heap_in_use_mib,
@@ -114,7 +127,8 @@ impl MemoryLog {
             u8::from(sample.global_ba_running),
             sample.keyframes,
             sample.map_points,
-            sample.maps
+            sample.maps,
+            sample.heap_release_ms
         )
         .and_then(|()| self.file.flush())
         .with_context(|| format!("cannot write {}", self.path.display()))?;
