@@ -53,53 +53,6 @@ pub fn release_free_heap() -> bool {
     }
 }
 
-/// The size from which [`map_large_blocks_separately`] has glibc give a
-/// block a mapping of its own: a quarter of a SuperPoint frame's 1,000 ×
-/// 256-float descriptor array (1 MB), above most of the map's small
-/// objects.
-pub const LARGE_BLOCK_BYTES: usize = 256 * 1024;
-
-/// Has glibc serve every block of at least [`LARGE_BLOCK_BYTES`] with a
-/// mapping of its own, unmapped (handed back to the system) when the
-/// block is freed: `mallopt(M_MMAP_THRESHOLD)`.
-///
-/// glibc's own threshold starts at 128 KiB but rises to the size of any
-/// such block freed (up to 32 MiB), so after the first frame a frame's
-/// megabyte-sized arrays (descriptors, images, the network's outputs) come
-/// from the arenas, and freed they stay there: in a 1,500-frame run of
-/// the soak sequence the freed heap held rose to 35–50 MiB within a few
-/// hundred frames, and in the 10,000-frame soak run to 90–130 MiB between
-/// two hand-backs; with the threshold set it stayed under 10 MiB
-/// (`EVALUATION.md`, 'Soak'). Setting the threshold explicitly is what
-/// stops it rising.
-///
-/// Process-wide, so only the `spslam` program calls it (`spslam run`); a
-/// library user can ask for the same with
-/// `GLIBC_TUNABLES=glibc.malloc.mmap_threshold=262144`. Leaves an explicit
-/// `glibc.malloc.mmap_threshold` in `GLIBC_TUNABLES` as the user set it.
-/// Returns whether the threshold was set; `false` where the C library is
-/// not glibc.
-pub fn map_large_blocks_separately() -> bool {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    {
-        let user_set = std::env::var("GLIBC_TUNABLES")
-            .is_ok_and(|tunables| tunables.contains("glibc.malloc.mmap_threshold"));
-        if user_set {
-            return false;
-        }
-        let Ok(bytes) = libc::c_int::try_from(LARGE_BLOCK_BYTES) else {
-            return false;
-        };
-        // SAFETY: `mallopt` takes no pointer; it changes glibc's allocator
-        // parameters under its own lock and is safe to call at any time.
-        unsafe { libc::mallopt(libc::M_MMAP_THRESHOLD, bytes) == 1 }
-    }
-    #[cfg(not(all(target_os = "linux", target_env = "gnu")))]
-    {
-        false
-    }
-}
-
 /// What glibc's heap holds (`mallinfo2`), MiB: what a resident-memory
 /// figure is made of.
 #[derive(Clone, Copy, Debug, PartialEq)]

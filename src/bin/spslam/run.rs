@@ -248,9 +248,6 @@ enum ExtractorChoice {
 /// could not start (exit code 1); otherwise the exit code is 0 for a
 /// complete run, 2 for an incomplete one (its outputs written).
 pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
-    // Large blocks are mapped and unmapped on their own, so freed frames do
-    // not pile up in the allocator's arenas (`map_large_blocks_separately`).
-    spslam::ffi::map_large_blocks_separately();
     let source = Source::open(&args.dataset)?;
     let sensor = args.sensor.unwrap_or_else(|| source.default_sensor());
     let mut settings = match &args.settings {

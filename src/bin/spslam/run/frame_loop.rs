@@ -174,10 +174,8 @@ impl FrameLoop<'_> {
             // Freed heap goes back to the system after each global BA (its
             // working set, the whole map's problem, is freed when it is
             // applied) and every HEAP_RELEASE_FRAMES frames: glibc keeps
-            // freed small blocks in its arenas, and without this a soak
-            // run's kept heap rose from 74 to 312 MiB (EVALUATION.md,
-            // 'Soak'). Large blocks are unmapped when freed
-            // (`map_large_blocks_separately`, at the run's start).
+            // freed memory in its arenas, and without this a soak run's
+            // kept heap rose from 74 to 312 MiB (EVALUATION.md, 'Soak').
             let global_ba_applied = slam.global_ba_runs().len() > global_bas_seen;
             if global_ba_applied || (index + 1).is_multiple_of(HEAP_RELEASE_FRAMES) {
                 global_bas_seen = slam.global_ba_runs().len();
