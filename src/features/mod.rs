@@ -15,6 +15,7 @@ pub mod frontend;
 mod image;
 mod inference;
 mod keypoint;
+mod local_contrast;
 pub mod model;
 pub mod nms;
 pub mod orb;

@@ -26,34 +26,17 @@
 use ndarray::ArrayView2;
 
 use super::anms::Candidate;
+use super::local_contrast::{ContrastMethod, ContrastWindows};
 use super::model::CELL;
 use super::{GrayImageView, PeriodicFilterConfig};
 
 const PHASES: usize = CELL * CELL;
 
-/// Standard deviation of the gray levels in the (2r+1)² window around (x, y),
-/// clipped to the image.
-pub fn local_contrast(image: GrayImageView<'_>, x: usize, y: usize, radius: usize) -> f32 {
-    let x0 = x.saturating_sub(radius);
-    let y0 = y.saturating_sub(radius);
-    let x1 = (x + radius + 1).min(image.width());
-    let y1 = (y + radius + 1).min(image.height());
-    let (mut sum, mut sum_sq, mut n) = (0u64, 0u64, 0u64);
-    for row_index in y0..y1 {
-        for &p in &image.row(row_index)[x0..x1] {
-            sum += p as u64;
-            sum_sq += (p as u64) * (p as u64);
-            n += 1;
-        }
-    }
-    if n == 0 {
-        return 0.0;
-    }
-    let mean = sum as f64 / n as f64;
-    ((sum_sq as f64 / n as f64 - mean * mean).max(0.0)).sqrt() as f32
-}
+pub use super::local_contrast::local_contrast;
 
-/// Drops candidates whose local contrast is below the configured minimum.
+/// Drops candidates whose local contrast is below the configured minimum
+/// (summing each window directly, or from summed-area tables where the
+/// windows would read the image many times over: the same values).
 pub fn reject_low_contrast(
     candidates: &mut Vec<Candidate>,
     image: GrayImageView<'_>,
@@ -62,10 +45,14 @@ pub fn reject_low_contrast(
     if !config.enabled || config.min_contrast <= 0.0 {
         return;
     }
-    candidates.retain(|c| {
-        local_contrast(image, c.x as usize, c.y as usize, config.contrast_radius)
-            >= config.min_contrast
-    });
+    let method = ContrastMethod::cheaper(
+        candidates.len(),
+        config.contrast_radius,
+        image.width(),
+        image.height(),
+    );
+    let windows = ContrastWindows::new(image, config.contrast_radius, method);
+    candidates.retain(|c| windows.at(c.x as usize, c.y as usize) >= config.min_contrast);
 }
 
 /// Binomial standard deviations above a phase's uniform share that, with
