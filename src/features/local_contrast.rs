@@ -46,7 +46,7 @@ fn window(x: usize, y: usize, radius: usize, width: usize, height: usize) -> [us
 fn direct_sums(image: GrayImageView<'_>, x: usize, y: usize, radius: usize) -> WindowSums {
     let [x0, y0, x1, y1] = window(x, y, radius, image.width(), image.height());
     let mut sums = WindowSums {
-        count: 0,
+        count: ((x1 - x0) * (y1 - y0)) as u64,
         sum: 0,
         sum_squares: 0,
     };
@@ -54,7 +54,6 @@ fn direct_sums(image: GrayImageView<'_>, x: usize, y: usize, radius: usize) -> W
         for &p in &image.row(row_index)[x0..x1] {
             sums.sum += u64::from(p);
             sums.sum_squares += u64::from(p) * u64::from(p);
-            sums.count += 1;
         }
     }
     sums
@@ -86,7 +85,7 @@ impl SummedAreaTables {
         let mut sum_squares = vec![0u64; stride * (height + 1)];
         for y in 0..height {
             let (mut row_sum, mut row_squares) = (0u64, 0u64);
-            for (x, &p) in image.row(y).iter().enumerate().take(width) {
+            for (x, &p) in image.row(y).iter().enumerate() {
                 row_sum += u64::from(p);
                 row_squares += u64::from(p) * u64::from(p);
                 let at = (y + 1) * stride + x + 1;
