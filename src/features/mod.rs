@@ -3,6 +3,7 @@
 
 pub mod anms;
 mod config;
+mod cuda_provider;
 pub mod descriptor_set;
 pub mod descriptors;
 mod device;

@@ -32,6 +32,12 @@ pub const GRID_ARTEFACT_KEY: &str = "grid_artefact";
 /// A SuperPoint-interface ONNX model in an ONNX Runtime session.
 pub struct SuperPointModel {
     session: Session,
+    /// On CUDA, one further session per input shape (see
+    /// [`super::cuda_provider`]); unused on the CPU, where a shape change
+    /// costs nothing.
+    shape_sessions: super::cuda_provider::ShapeSessions,
+    environment: ort::environment::Environment,
+    threads: usize,
     path: PathBuf,
     descriptor_len: usize,
     distance_thresholds: DistanceThresholds,
@@ -73,7 +79,7 @@ impl SuperPointModel {
         let environment = super::runtime::environment(ort_library)?;
         let load_on = |device: Device| {
             let session = open_session(&environment, path, threads, device)?;
-            Self::checked(session, path, device)
+            Self::checked(session, path, device, environment.clone(), threads)
         };
         match device {
             Device::Auto if cuda_offered() => load_on(Device::Cuda).or_else(|e| {
@@ -91,7 +97,13 @@ impl SuperPointModel {
 
     /// Checks a session's interface with one small inference; the
     /// descriptor length is read from that output.
-    fn checked(session: Session, path: &Path, device: Device) -> Result<Self, FeatureError> {
+    fn checked(
+        session: Session,
+        path: &Path,
+        device: Device,
+        environment: ort::environment::Environment,
+        threads: usize,
+    ) -> Result<Self, FeatureError> {
         let interface_err = |reason: String| FeatureError::ModelInterface {
             path: path.to_path_buf(),
             reason,
@@ -120,6 +132,9 @@ impl SuperPointModel {
             traits_from_metadata(&session).map_err(interface_err)?;
         let mut model = Self {
             session,
+            shape_sessions: Default::default(),
+            environment,
+            threads,
             path: path.to_path_buf(),
             descriptor_len: 0,
             distance_thresholds,
@@ -190,8 +205,18 @@ impl SuperPointModel {
             path: path.clone(),
             reason,
         };
+        let shape = (image.shape()[2], image.shape()[3]);
+        let probe = shape == (2 * CELL, 2 * CELL);
+        let session = if self.device == Device::Cuda && !probe {
+            let (environment, path, threads) = (&self.environment, &self.path, self.threads);
+            self.shape_sessions.session_for(shape, || {
+                open_session(environment, path, threads, Device::Cuda)
+            })?
+        } else {
+            &mut self.session
+        };
         let input = TensorRef::from_array_view(image)?;
-        let outputs = self.session.run(ort::inputs![INPUT_NAME => input])?;
+        let outputs = session.run(ort::inputs![INPUT_NAME => input])?;
         let scores = outputs
             .get(SCORES_NAME)
             .ok_or_else(|| interface_err(format!("no `{SCORES_NAME}` output")))?
@@ -321,7 +346,7 @@ fn open_session(
     let cuda = device == Device::Cuda;
     if cuda {
         builder = builder
-            .with_execution_providers([ort::ep::CUDA::default().build().error_on_failure()])
+            .with_execution_providers([super::cuda_provider::cuda_execution_provider()?])
             .map_err(|e| cuda_unavailable(e.to_string()))?;
     }
     match builder.commit_from_file(path) {
