@@ -36,6 +36,13 @@ pub struct SuperPointModel {
     /// [`super::cuda_provider`]); unused on the CPU, where a shape change
     /// costs nothing.
     shape_sessions: super::cuda_provider::ShapeSessions,
+    /// Whether `shape_sessions` is used (CUDA, and not turned off by
+    /// [`super::cuda_provider::SESSION_PER_SHAPE_VARIABLE`]).
+    session_per_shape: bool,
+    /// The shape `session` serves when sessions are per shape: the first
+    /// one run after the interface probe, so one pyramid level needs no
+    /// second session.
+    session_shape: Option<(usize, usize)>,
     environment: ort::environment::Environment,
     threads: usize,
     path: PathBuf,
@@ -133,6 +140,9 @@ impl SuperPointModel {
         let mut model = Self {
             session,
             shape_sessions: Default::default(),
+            session_per_shape: device == Device::Cuda
+                && super::cuda_provider::session_per_shape_from_environment()?,
+            session_shape: None,
             environment,
             threads,
             path: path.to_path_buf(),
@@ -207,7 +217,10 @@ impl SuperPointModel {
         };
         let shape = (image.shape()[2], image.shape()[3]);
         let probe = shape == (2 * CELL, 2 * CELL);
-        let session = if self.device == Device::Cuda && !probe {
+        if self.session_per_shape && !probe && self.session_shape.is_none() {
+            self.session_shape = Some(shape);
+        }
+        let session = if self.session_per_shape && !probe && self.session_shape != Some(shape) {
             let (environment, path, threads) = (&self.environment, &self.path, self.threads);
             self.shape_sessions.session_for(shape, || {
                 open_session(environment, path, threads, Device::Cuda)

@@ -21,12 +21,24 @@ NV=$(python3 -c "import nvidia,glob; print(':'.join(sorted(d for p in nvidia.__p
 export LD_LIBRARY_PATH=$R/cv:$NV SPSLAM_MODELS_DIR=$R/models ORT_DYLIB_PATH=$R/libonnxruntime.so.1.31.1
 nvidia-smi -L; nvidia-smi --query-gpu=driver_version --format=csv,noheader
 lscpu | grep -E 'Model name|^CPU\(s\)'
-# "search|precision levels frames": cuDNN's convolution search, then gpu_check's arguments.
-RUNS=${GPU_CHECK_RUNS:-"heuristic|fp32 1 100;heuristic|fp32 4 100;heuristic|fp32 8 100;exhaustive|fp32 8 100;exhaustive|fp32 1 100"}
+# Each run is "ENVIRONMENT|ARGUMENTS": variable assignments for gpu_check
+# (SPSLAM_CUDA_CONV_SEARCH, SPSLAM_CUDA_SESSION_PER_SHAPE), then its
+# precision, levels and frames. The GPU's memory in use is polled every
+# 0.2 s during each run; its peak above the idle reading is printed.
+RUNS=${GPU_CHECK_RUNS:-"SPSLAM_CUDA_CONV_SEARCH=heuristic|fp32 1 100;SPSLAM_CUDA_CONV_SEARCH=heuristic|fp32 8 100;SPSLAM_CUDA_CONV_SEARCH=exhaustive|fp32 8 100"}
+gpu_memory() { local m; m=$(nvidia-smi --query-gpu=memory.used --format=csv,noheader,nounits 2>/dev/null | head -n1); echo "${m:-0}"; }
 IFS=';' read -ra runs <<< "$RUNS"
-for cfg in "${runs[@]}"; do
-    export SPSLAM_CUDA_CONV_SEARCH=${cfg%%|*}
-    echo "=== SPSLAM_CUDA_CONV_SEARCH=$SPSLAM_CUDA_CONV_SEARCH gpu_check ${cfg#*|}" | tee -a "$LOG"
+for run in "${runs[@]}"; do
+    environment=${run%%|*}; arguments=${run#*|}
+    echo "=== $environment gpu_check $arguments" | tee -a "$LOG"
+    idle=$(gpu_memory); peak=$idle
     # shellcheck disable=SC2086
-    timeout 100 ./gpu_check ${cfg#*|} kitti06_000000.pgm 2>&1 | tee -a "$LOG"
+    env $environment timeout 100 ./gpu_check $arguments kitti06_000000.pgm > run.out 2>&1 &
+    pid=$!
+    while kill -0 $pid 2>/dev/null; do
+        used=$(gpu_memory); (( used > peak )) && peak=$used; sleep 0.2
+    done
+    wait $pid
+    cat run.out | tee -a "$LOG"
+    echo "  GPU memory: peak $((peak - idle)) MiB above idle ($idle MiB)" | tee -a "$LOG"
 done
