@@ -49,9 +49,20 @@ pub fn parse_conv_search(value: &str) -> Result<ConvAlgorithmSearch, FeatureErro
 
 /// The search the environment asks for, else `HEURISTIC`.
 pub fn conv_search_from_environment() -> Result<ConvAlgorithmSearch, FeatureError> {
-    match std::env::var(CONV_SEARCH_VARIABLE) {
-        Ok(value) if !value.is_empty() => parse_conv_search(&value),
-        _ => Ok(ConvAlgorithmSearch::Heuristic),
+    from_environment(CONV_SEARCH_VARIABLE, parse_conv_search, || {
+        ConvAlgorithmSearch::Heuristic
+    })
+}
+
+/// `variable` parsed by `parse` when it is set and not empty, else `default()`.
+fn from_environment<T>(
+    variable: &str,
+    parse: impl Fn(&str) -> Result<T, FeatureError>,
+    default: impl FnOnce() -> T,
+) -> Result<T, FeatureError> {
+    match std::env::var(variable) {
+        Ok(value) if !value.is_empty() => parse(&value),
+        _ => Ok(default()),
     }
 }
 
@@ -77,10 +88,9 @@ pub fn parse_arena_extend(value: &str) -> Result<ArenaExtendStrategy, FeatureErr
 
 /// The arena growth the environment asks for, else `requested`.
 pub fn arena_extend_from_environment() -> Result<ArenaExtendStrategy, FeatureError> {
-    match std::env::var(ARENA_EXTEND_VARIABLE) {
-        Ok(value) if !value.is_empty() => parse_arena_extend(&value),
-        _ => Ok(ArenaExtendStrategy::SameAsRequested),
-    }
+    from_environment(ARENA_EXTEND_VARIABLE, parse_arena_extend, || {
+        ArenaExtendStrategy::SameAsRequested
+    })
 }
 
 /// The CUDA execution provider with the extractor's options; ONNX Runtime's
@@ -103,10 +113,7 @@ pub const SESSION_PER_SHAPE_VARIABLE: &str = "SPSLAM_CUDA_SESSION_PER_SHAPE";
 /// [`SESSION_PER_SHAPE_VARIABLE`] says `0`, `off` or `false` (`1`, `on`,
 /// `true` or unset: yes; anything else is an error naming the variable).
 pub fn session_per_shape_from_environment() -> Result<bool, FeatureError> {
-    match std::env::var(SESSION_PER_SHAPE_VARIABLE) {
-        Ok(value) if !value.is_empty() => parse_switch(&value),
-        _ => Ok(true),
-    }
+    from_environment(SESSION_PER_SHAPE_VARIABLE, parse_switch, || true)
 }
 
 fn parse_switch(value: &str) -> Result<bool, FeatureError> {

@@ -223,7 +223,20 @@ impl SuperPointModel {
         let session = if self.session_per_shape && !probe && self.session_shape != Some(shape) {
             let (environment, path, threads) = (&self.environment, &self.path, self.threads);
             self.shape_sessions.session_for(shape, || {
-                open_session(environment, path, threads, Device::Cuda)
+                open_session(environment, path, threads, Device::Cuda).map_err(|e| match e {
+                    FeatureError::DeviceUnavailable { device, reason } => {
+                        FeatureError::DeviceUnavailable {
+                            device,
+                            reason: format!(
+                                "opening the session for a {}x{} input (one per pyramid level; {}=0 keeps one): {reason}",
+                                shape.1,
+                                shape.0,
+                                super::cuda_provider::SESSION_PER_SHAPE_VARIABLE
+                            ),
+                        }
+                    }
+                    other => other,
+                })
             })?
         } else {
             &mut self.session
