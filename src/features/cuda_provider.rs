@@ -35,16 +35,36 @@ pub const CONV_SEARCH_VARIABLE: &str = "SPSLAM_CUDA_CONV_SEARCH";
 
 /// Parses a convolution-search name (case-insensitive).
 pub fn parse_conv_search(value: &str) -> Result<ConvAlgorithmSearch, FeatureError> {
-    match value.to_ascii_lowercase().as_str() {
-        "heuristic" => Ok(ConvAlgorithmSearch::Heuristic),
-        "exhaustive" => Ok(ConvAlgorithmSearch::Exhaustive),
-        "default" => Ok(ConvAlgorithmSearch::Default),
-        _ => Err(FeatureError::InvalidConfig {
-            name: CONV_SEARCH_VARIABLE,
+    parse_name(
+        CONV_SEARCH_VARIABLE,
+        value,
+        &[
+            ("heuristic", ConvAlgorithmSearch::Heuristic),
+            ("exhaustive", ConvAlgorithmSearch::Exhaustive),
+            ("default", ConvAlgorithmSearch::Default),
+        ],
+        "heuristic, exhaustive or default",
+    )
+}
+
+/// The choice `value` names among `choices` (case-insensitive), else an
+/// error naming `variable` and what it `expected`.
+fn parse_name<T: Clone>(
+    variable: &'static str,
+    value: &str,
+    choices: &[(&str, T)],
+    expected: &'static str,
+) -> Result<T, FeatureError> {
+    let wanted = value.to_ascii_lowercase();
+    choices
+        .iter()
+        .find(|(name, _)| *name == wanted)
+        .map(|(_, choice)| choice.clone())
+        .ok_or_else(|| FeatureError::InvalidConfig {
+            name: variable,
             value: value.to_string(),
-            expected: "heuristic, exhaustive or default",
-        }),
-    }
+            expected,
+        })
 }
 
 /// The search the environment asks for, else `HEURISTIC`.
@@ -75,15 +95,15 @@ pub const ARENA_EXTEND_VARIABLE: &str = "SPSLAM_CUDA_ARENA_EXTEND";
 
 /// Parses an arena-growth name (case-insensitive).
 pub fn parse_arena_extend(value: &str) -> Result<ArenaExtendStrategy, FeatureError> {
-    match value.to_ascii_lowercase().as_str() {
-        "requested" => Ok(ArenaExtendStrategy::SameAsRequested),
-        "power-of-two" => Ok(ArenaExtendStrategy::NextPowerOfTwo),
-        _ => Err(FeatureError::InvalidConfig {
-            name: ARENA_EXTEND_VARIABLE,
-            value: value.to_string(),
-            expected: "requested or power-of-two",
-        }),
-    }
+    parse_name(
+        ARENA_EXTEND_VARIABLE,
+        value,
+        &[
+            ("requested", ArenaExtendStrategy::SameAsRequested),
+            ("power-of-two", ArenaExtendStrategy::NextPowerOfTwo),
+        ],
+        "requested or power-of-two",
+    )
 }
 
 /// The arena growth the environment asks for, else `requested`.
@@ -117,15 +137,19 @@ pub fn session_per_shape_from_environment() -> Result<bool, FeatureError> {
 }
 
 fn parse_switch(value: &str) -> Result<bool, FeatureError> {
-    match value.to_ascii_lowercase().as_str() {
-        "1" | "on" | "true" => Ok(true),
-        "0" | "off" | "false" => Ok(false),
-        _ => Err(FeatureError::InvalidConfig {
-            name: SESSION_PER_SHAPE_VARIABLE,
-            value: value.to_string(),
-            expected: "1, on, true, 0, off or false",
-        }),
-    }
+    parse_name(
+        SESSION_PER_SHAPE_VARIABLE,
+        value,
+        &[
+            ("1", true),
+            ("on", true),
+            ("true", true),
+            ("0", false),
+            ("off", false),
+            ("false", false),
+        ],
+        "1, on, true, 0, off or false",
+    )
 }
 
 /// At most this many input shapes keep their own CUDA session; beyond it the

@@ -140,8 +140,9 @@ impl SuperPointModel {
         let mut model = Self {
             session,
             shape_sessions: Default::default(),
-            session_per_shape: device == Device::Cuda
-                && super::cuda_provider::session_per_shape_from_environment()?,
+            // Set after the interface probe below, so that the probe's
+            // 16x16 input never claims the first session's shape.
+            session_per_shape: false,
             session_shape: None,
             environment,
             threads,
@@ -167,6 +168,8 @@ impl SuperPointModel {
             return Err(interface_err("descriptor length is 0".into()));
         }
         model.descriptor_len = descriptor_len;
+        model.session_per_shape =
+            device == Device::Cuda && super::cuda_provider::session_per_shape_from_environment()?;
         Ok(model)
     }
 
@@ -216,11 +219,10 @@ impl SuperPointModel {
             reason,
         };
         let shape = (image.shape()[2], image.shape()[3]);
-        let probe = shape == (2 * CELL, 2 * CELL);
-        if self.session_per_shape && !probe && self.session_shape.is_none() {
+        if self.session_per_shape && self.session_shape.is_none() {
             self.session_shape = Some(shape);
         }
-        let session = if self.session_per_shape && !probe && self.session_shape != Some(shape) {
+        let session = if self.session_per_shape && self.session_shape != Some(shape) {
             let (environment, path, threads) = (&self.environment, &self.path, self.threads);
             self.shape_sessions.session_for(shape, || {
                 open_session(environment, path, threads, Device::Cuda).map_err(|e| match e {

@@ -56,23 +56,26 @@ def payloads(data):
         pos = container_end
 
 
+def other_architectures(data, keep):
+    """(start, length) of every payload that is not sm_KEEP machine code."""
+    return [(start, n) for start, n, kind, sm in payloads(data) if not (kind == ELF_KIND and sm == keep)]
+
+
 def main(argv):
     if len(argv) == 5 and argv[0] == "split":
         src, keep, zeroed, rest = argv[1], int(argv[2]), argv[3], argv[4]
         data = bytearray(open(src, "rb").read())
         with open(rest, "wb") as out:
-            for start, n, kind, sm in list(payloads(data)):
-                if not (kind == ELF_KIND and sm == keep):
-                    out.write(data[start:start + n])
-                    data[start:start + n] = bytes(n)
+            for start, n in other_architectures(data, keep):
+                out.write(data[start:start + n])
+                data[start:start + n] = bytes(n)
         open(zeroed, "wb").write(data)
     elif len(argv) == 5 and argv[0] == "restore":
         zeroed, keep, rest, out = argv[1], int(argv[2]), argv[3], argv[4]
         data = bytearray(open(zeroed, "rb").read())
         with open(rest, "rb") as source:
-            for start, n, kind, sm in list(payloads(data)):
-                if not (kind == ELF_KIND and sm == keep):
-                    data[start:start + n] = source.read(n)
+            for start, n in other_architectures(data, keep):
+                data[start:start + n] = source.read(n)
         open(out, "wb").write(data)
     else:
         sys.exit(__doc__)
