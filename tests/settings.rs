@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use spslam::features::{AnmsMethod, Device, Precision};
+use spslam::features::{AnmsMethod, Device, ExposureConfig, ExposureMode, Precision};
 use spslam::settings::{SettingsError, SlamSettings, DEFAULT_TH_DEPTH};
 
 fn write(name: &str, text: &str) -> PathBuf {
@@ -72,7 +72,8 @@ fn spslam_keys_and_defaults() {
     let text = "%YAML:1.0\nCamera.fx: 400.0\nCamera.fy: 400.0\nCamera.cx: 320.0\nCamera.cy: 240.0\n\
                 SuperPoint.anms: \"ssc\"\nSuperPoint.model: \"models/sp.onnx\"\nTracking.maxDepth: 20.0\n\
                 SuperPoint.precision: \"int8\"\nSuperPoint.device: \"cpu\"\n\
-                SuperPoint.maxPhaseShare: 3.0\nRGBD.DepthMapFactor: 5000.0\n";
+                SuperPoint.maxPhaseShare: 3.0\nRGBD.DepthMapFactor: 5000.0\n\
+                SuperPoint.exposure: \"normalise\"\n";
     let path = write("ours.yaml", text);
     let s = SlamSettings::from_file(&path).expect("spslam keys");
     assert_eq!(s.extractor.anms, AnmsMethod::Ssc);
@@ -86,6 +87,11 @@ fn spslam_keys_and_defaults() {
     assert_eq!(
         config.periodic_filter.max_phase_share, 3.0,
         "SuperPoint.maxPhaseShare reaches the periodic filter"
+    );
+    assert_eq!(
+        config.exposure,
+        ExposureConfig::for_mode(ExposureMode::Normalise),
+        "SuperPoint.exposure reaches the extractor"
     );
     assert_eq!(
         s.extractor.model.as_deref(),
@@ -194,6 +200,7 @@ fn bad_files_give_typed_errors_that_name_the_key() {
     for (key, value, accepted) in [
         ("SuperPoint.precision", "fp16", "fp32 or int8"),
         ("SuperPoint.device", "tpu", "auto, cpu or cuda"),
+        ("SuperPoint.exposure", "bright", "normalise, dim or off"),
     ] {
         let e = error_for(
             "inference.yaml",

@@ -282,6 +282,16 @@ impl ExtractorConfig {
                 "gray levels in [0, 255] (0 = off)",
             ));
         }
+        if !(e.target_low.is_finite()
+            && e.target_low >= 0.0
+            && e.target_low + e.target_range <= 255.0)
+        {
+            return Err(bad(
+                "exposure.target_low",
+                e.target_low,
+                "a gray level ≥ 0 with target_low + target_range ≤ 255",
+            ));
+        }
         if !(e.max_gain.is_finite() && (1.0..=64.0).contains(&e.max_gain)) {
             return Err(bad("exposure.max_gain", e.max_gain, "a gain in [1, 64]"));
         }

