@@ -290,10 +290,15 @@ fn a_dim_frame_is_stretched_and_keeps_its_keypoints_and_descriptors() {
     for frame in [0, 25, 50] {
         let image = kitti_frame(&data, 0, frame);
         let reference = stretched.extract(image.view()).unwrap();
-        // A normal frame is used as it is: the same keypoints either way.
-        assert_eq!(stretched.last_exposure().gain, 1.0);
-        let plain = unstretched.extract(image.view()).unwrap();
-        assert_eq!(plain.keypoints, reference.keypoints, "frame {frame}");
+        // A normal frame is used as it is (the default white point leaves a
+        // frame whose 99th percentile reaches 250 alone: frames 0 and 50,
+        // at 255), or nearly (frame 25's is 221: gain 1.13).
+        let normal_gain = stretched.last_exposure().gain;
+        assert!(normal_gain <= 1.2, "frame {frame}: gain {normal_gain}");
+        if normal_gain == 1.0 {
+            let plain = unstretched.extract(image.view()).unwrap();
+            assert_eq!(plain.keypoints, reference.keypoints, "frame {frame}");
+        }
 
         let dim = dimmed(&image, frame as u64);
         let with = stretched.extract(dim.view()).unwrap();
@@ -307,12 +312,14 @@ fn a_dim_frame_is_stretched_and_keeps_its_keypoints_and_descriptors() {
             "KITTI 06 frame {frame} at a quarter of the light: gain {gain:.2}; keypoints {} with the stretch, {} without; {m_with} vs {m_without} mutual matches at the same place (of {})",
             with.len(), without.len(), reference.len()
         );
-        // Measured (Intel VNNI, int8): gains 1.80–2.21; 133–152 matches
-        // with the stretch, 0 without (the network fires on its 8-px lattice
-        // and the filter clears it). Bounds: about 25 % below.
-        assert!(gain > 1.5, "frame {frame}: gain {gain}");
+        // Measured (AMD EPYC with VNNI, int8) with the default white point:
+        // gains 3.52–4.31; 646–683 matches with it, 0 without (the network
+        // fires on its 8-px lattice and the filter clears it). With the dim
+        // stretch, the default before, gains were 1.80–2.21 and matches
+        // 133–152 (Intel VNNI). Bounds: about 25 % below.
+        assert!(gain > 2.6, "frame {frame}: gain {gain}");
         assert!(
-            m_with >= 100,
+            m_with >= 480,
             "frame {frame}: {m_with} matches at the same place with the stretch"
         );
         assert!(

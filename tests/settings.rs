@@ -200,7 +200,11 @@ fn bad_files_give_typed_errors_that_name_the_key() {
     for (key, value, accepted) in [
         ("SuperPoint.precision", "fp16", "fp32 or int8"),
         ("SuperPoint.device", "tpu", "auto, cpu or cuda"),
-        ("SuperPoint.exposure", "bright", "normalise, dim or off"),
+        (
+            "SuperPoint.exposure",
+            "bright",
+            "normalise, white, dim or off",
+        ),
     ] {
         let e = error_for(
             "inference.yaml",

@@ -21,7 +21,7 @@
 //!   the path of an ONNX model (used whatever the precision), relative to
 //!   the settings file;
 //! - `SuperPoint.exposure`: how the network's input is mapped from the
-//!   image's gray levels: `normalise`, `dim` or `off` (see
+//!   image's gray levels: `normalise`, `white`, `dim` or `off` (see
 //!   [`ExposureMode`]; default: [`ExposureMode::default`]);
 //! - `Tracking.maxDepth`: drop stereo points deeper than this many metres (the
 //!   paper's 20 m filter); absent or 0 turns it off.
@@ -396,7 +396,11 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
     let exposure = match reader.optional_string(&["SuperPoint.exposure"])? {
         None => defaults.exposure,
         Some(text) => text.parse::<ExposureMode>().map_err(|_| {
-            reader.invalid("SuperPoint.exposure", &text, "use normalise, dim or off")
+            reader.invalid(
+                "SuperPoint.exposure",
+                &text,
+                "use normalise, white, dim or off",
+            )
         })?,
     };
     Ok(ExtractorSettings {

