@@ -307,19 +307,24 @@ mod tests {
             .collect()
     }
 
+    /// The largest difference (gray levels) between the network inputs of
+    /// two images of the same scene under `config`.
+    fn largest_difference(a: &GrayImage, b: &GrayImage, config: &ExposureConfig) -> f32 {
+        mapped(a, config)
+            .iter()
+            .zip(mapped(b, config))
+            .map(|(x, y)| (x - y).abs() * 255.0)
+            .fold(0.0f32, f32::max)
+    }
+
     #[test]
     fn normalising_maps_the_percentile_range_to_the_target_whatever_the_gain() {
         let config = ExposureConfig::for_mode(ExposureMode::Normalise);
         // The same scene at half and at full gain (a flickering lamp).
         let (dim, bright) = (ramp(20, 110), ramp(40, 220));
-        let (a, b) = (mapped(&dim, &config), mapped(&bright, &config));
         // Quantisation of the half-gain image: at most one of its levels
         // (2 of the bright one's), times the gain (about 2.5).
-        let worst = a
-            .iter()
-            .zip(&b)
-            .map(|(x, y)| (x - y).abs() * 255.0)
-            .fold(0.0f32, f32::max);
+        let worst = largest_difference(&dim, &bright, &config);
         assert!(worst <= 3.0, "largest difference {worst} gray levels");
         // The 1st and 99th percentiles land on 16 and 240.
         let stretch = ExposureStretch::measure(bright.view(), &config);
@@ -354,12 +359,7 @@ mod tests {
         let config = ExposureConfig::for_mode(ExposureMode::WhitePoint);
         // The same scene at half and at full gain: zero stays zero.
         let (dim, bright) = (ramp(0, 110), ramp(0, 220));
-        let (a, b) = (mapped(&dim, &config), mapped(&bright, &config));
-        let worst = a
-            .iter()
-            .zip(&b)
-            .map(|(x, y)| (x - y).abs() * 255.0)
-            .fold(0.0f32, f32::max);
+        let worst = largest_difference(&dim, &bright, &config);
         assert!(worst <= 3.0, "largest difference {worst} gray levels");
         let stretch = ExposureStretch::measure(bright.view(), &config);
         assert_eq!((stretch.low, stretch.out_low), (0.0, 0.0));
