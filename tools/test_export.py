@@ -44,6 +44,7 @@ import unittest
 import zipfile
 
 import numpy as np
+import onnx
 import onnxruntime as ort
 
 TOOLS = os.path.dirname(os.path.abspath(__file__))
@@ -262,10 +263,11 @@ def write_pth(path, entries, prefix="archive", legacy=False):
         zf.writestr(f"{prefix}/version", "3\n")
 
 
-def magicleap_state_dict(seed=0):
-    """Random weights with the names and shapes of MagicLeap's superpoint_v1.pth."""
+def magicleap_state_dict(seed=0, first=64):
+    """Random weights with the names and shapes of MagicLeap's superpoint_v1.pth
+    (``first``: the first stage's width; 16 makes a narrow network)."""
     rng = np.random.default_rng(seed)
-    shapes = [("conv1a", 1, 64, 3), ("conv1b", 64, 64, 3), ("conv2a", 64, 64, 3),
+    shapes = [("conv1a", 1, first, 3), ("conv1b", first, first, 3), ("conv2a", first, 64, 3),
               ("conv2b", 64, 64, 3), ("conv3a", 64, 128, 3), ("conv3b", 128, 128, 3),
               ("conv4a", 128, 128, 3), ("conv4b", 128, 128, 3), ("convPa", 128, 256, 3),
               ("convPb", 256, 65, 1), ("convDa", 128, 256, 3), ("convDb", 256, 256, 1)]
@@ -410,6 +412,57 @@ class ExportTest(unittest.TestCase):
             self.assertGreater(rs.max(), 1e-3, "degenerate random model")
             self.assertClose(scores, rs, f"magicleap scores {h}x{w}")
             self.assertClose(desc, rd, f"magicleap desc {h}x{w}")
+
+    def test_narrow_network_softmax_decomposed(self):
+        """A narrow network (first stage of 16 channels, as SuperPoint-Lite)
+        gets the decomposed channel softmax and still equals the reference;
+        the full-width exports keep ONNX's Softmax."""
+        sd = magicleap_state_dict(seed=3, first=16)
+        pth = os.path.join(self.tmp.name, "narrow.pth")
+        out = os.path.join(self.tmp.name, "narrow.onnx")
+        write_magicleap_pth(pth, sd)
+        model = ex.export(pth, out)
+        ops = {n.op_type for n in model.graph.node}
+        self.assertIn("ReduceMax", ops)
+        self.assertNotIn("Softmax", ops)
+        for path in (self.sl_onnx, self.ml_onnx):
+            self.assertIn("Softmax", {n.op_type for n in onnx.load(path).graph.node}, path)
+        for h, w in SIZES:
+            img = self.rng.random((1, 1, h, w), dtype=np.float32)
+            scores, desc = run_onnx(out, img)
+            rs, rd = ref_magicleap(sd, img[0])
+            self.assertGreater(rs.max(), 1e-3, "degenerate random model")
+            self.assertClose(scores, rs, f"narrow scores {h}x{w}")
+            self.assertClose(desc, rd, f"narrow desc {h}x{w}")
+
+    def test_narrow_int8_first_conv_reads_the_image(self):
+        """``first_conv_in_fp32`` drops the image's quantiser pair, the first
+        convolution reads ``image``, and the outputs stay those of the
+        quantised graph before it (to within the first layer's rounding)."""
+        sd = magicleap_state_dict(seed=4, first=16)
+        pth = os.path.join(self.tmp.name, "narrow_q.pth")
+        fp32 = os.path.join(self.tmp.name, "narrow_q.onnx")
+        write_magicleap_pth(pth, sd)
+        ex.export(pth, fp32)
+        images = [self.rng.random((1, 1, 64, 96), dtype=np.float32) for _ in range(3)]
+        quantised, _ = qz.quantize_model(fp32, images, exclude=qz.head_output_convs(onnx.load(fp32)))
+        before = os.path.join(self.tmp.name, "narrow_q_int8.onnx")
+        onnx.save(quantised, before)
+        after = os.path.join(self.tmp.name, "narrow_q_int8_first.onnx")
+        onnx.save(qz.first_conv_in_fp32(onnx.load(before)), after)
+        model = onnx.load(after)
+        readers = [n for n in model.graph.node if "image" in n.input]
+        self.assertEqual([n.op_type for n in readers], ["Conv"])
+        self.assertEqual(qz.first_conv_out_channels(model), 16)
+        img = images[0]
+        (s0, d0), (s1, d1) = run_onnx(before, img), run_onnx(after, img)
+        corr = float(np.corrcoef(s0.ravel(), s1.ravel())[0, 1])
+        cosine = float((d0 * d1).sum(axis=1).mean())
+        print(f"narrow int8 first conv fp32: score corr {corr:.4f}, desc cosine {cosine:.4f}", file=sys.stderr)
+        # Measured 0.9999 for both (seed 4, 2026-12-04); the image's own
+        # 8-bit quantisation is all that differs.
+        self.assertGreater(corr, 0.999, "scores before/after")
+        self.assertGreater(cosine, 0.999, "descriptors before/after")
 
     def test_interface(self):
         """Input/output names, shapes, unit descriptors, probability scores."""
