@@ -12,12 +12,8 @@
 
 mod common;
 
-use spslam::camera::CameraRig;
 use spslam::dataset::synthetic::{Condition, SceneName, SyntheticConfig, SyntheticSequence};
 use spslam::features::ExposureMode;
-use spslam::settings::SlamSettings;
-use spslam::system::SlamSystem;
-use spslam::tracking::Frontend;
 
 /// Frames run: the initialisation, the first straight (the frames whose
 /// gain jumps first) and the first corner (frames 21–28), so that the
@@ -56,24 +52,18 @@ fn tracks_every_frame(mode: ExposureMode, max_ate: f64) {
     config.frames = Some(FRAMES);
     config.condition = Condition::Flicker;
     let sequence = ok(SyntheticSequence::new(config));
-    let cam = *sequence.camera();
-    let mut settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
-    settings.extractor.exposure = mode;
-    let rig = ok(CameraRig::from_settings(&settings, cam.width, cam.height));
-    let sp_config = settings.extractor.superpoint_config(1, 1);
-    let sp = || Box::new(common::extractor(sp_config.clone()));
-    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
-    let report = common::synthetic_slam::run_against_truth(&mut slam, &sequence);
-    let summary = ok(slam.summary());
-    let lost: Vec<usize> = common::untracked(slam.records());
+    let run = common::synthetic_slam::superpoint_stereo_run(&sequence, |settings| {
+        settings.extractor.exposure = mode;
+    });
+    let (lost, report) = (run.lost, run.report);
     eprintln!(
         "flickering loop 640x480, SuperPoint + ANMS, exposure {mode}: {FRAMES} frames, {} maps, ATE se3 {:.3} m over {:.1} m, lost {lost:?}",
-        summary.maps.len(),
+        run.maps,
         report.ate.se3_rmse,
         report.path_length_m
     );
     assert!(lost.is_empty(), "frames not tracked: {lost:?}");
-    assert_eq!(summary.maps.len(), 1, "maps: {:?}", summary.maps);
+    assert_eq!(run.maps, 1, "maps");
     assert!(
         report.ate.se3_rmse <= max_ate,
         "ATE {} m over {} m",

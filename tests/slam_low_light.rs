@@ -11,11 +11,7 @@
 
 mod common;
 
-use spslam::camera::CameraRig;
 use spslam::dataset::synthetic::{Condition, SceneName, SyntheticConfig, SyntheticSequence};
-use spslam::settings::SlamSettings;
-use spslam::system::SlamSystem;
-use spslam::tracking::Frontend;
 
 /// Frames run: the initialisation and the first straight of the lap.
 const FRAMES: usize = 40;
@@ -34,23 +30,16 @@ fn superpoint_tracks_the_low_light_lap_from_its_first_frame() {
     config.frames = Some(FRAMES);
     config.condition = Condition::LowLight;
     let sequence = ok(SyntheticSequence::new(config));
-    let cam = *sequence.camera();
-    let settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
-    let rig = ok(CameraRig::from_settings(&settings, cam.width, cam.height));
-    let sp_config = settings.extractor.superpoint_config(1, 1);
-    let sp = || Box::new(common::extractor(sp_config.clone()));
-    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
-    let report = common::synthetic_slam::run_against_truth(&mut slam, &sequence);
-    let summary = ok(slam.summary());
-    let lost: Vec<usize> = common::untracked(slam.records());
+    let run = common::synthetic_slam::superpoint_stereo_run(&sequence, |_| {});
+    let (lost, report) = (run.lost, run.report);
     eprintln!(
         "low-light loop 480x360, SuperPoint + ANMS: {FRAMES} frames, {} maps, ATE se3 {:.3} m over {:.1} m, lost {lost:?}",
-        summary.maps.len(),
+        run.maps,
         report.ate.se3_rmse,
         report.path_length_m
     );
     assert!(lost.is_empty(), "frames not tracked: {lost:?}");
-    assert_eq!(summary.maps.len(), 1, "maps: {:?}", summary.maps);
+    assert_eq!(run.maps, 1, "maps");
     // Measured (Intel Xeon VNNI): 0.095 m over 39.1 m. The bound leaves
     // 2.6× for the other CPU kind's int8 outputs.
     assert!(

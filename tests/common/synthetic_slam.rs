@@ -180,3 +180,37 @@ pub fn run_against_truth(
     };
     evaluate(&reference, &estimate, &options).unwrap_or_else(|e| panic!("{e}"))
 }
+
+/// What a SuperPoint stereo run on a synthetic sequence gave.
+pub struct SuperPointRun {
+    /// Frames not tracked.
+    pub lost: Vec<usize>,
+    /// Maps in the atlas at the end.
+    pub maps: usize,
+    /// The trajectory against the sequence's ground truth.
+    pub report: spslam::eval::EvalReport,
+}
+
+/// SuperPoint + ANMS (the settings' extractor on one level, one thread per
+/// image) in stereo over every frame of `sequence`, local mapping inline,
+/// with the rectified-stereo settings of its camera edited by `configure`.
+pub fn superpoint_stereo_run(
+    sequence: &SyntheticSequence,
+    configure: impl FnOnce(&mut SlamSettings),
+) -> SuperPointRun {
+    let cam = *sequence.camera();
+    let mut settings = SlamSettings::rectified_stereo(cam.fx, cam.fy, cam.cx, cam.cy, cam.baseline);
+    configure(&mut settings);
+    let rig = CameraRig::from_settings(&settings, cam.width, cam.height)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let sp_config = settings.extractor.superpoint_config(1, 1);
+    let sp = || Box::new(super::extractor(sp_config.clone()));
+    let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
+    let report = run_against_truth(&mut slam, sequence);
+    let summary = slam.summary().unwrap_or_else(|e| panic!("{e}"));
+    SuperPointRun {
+        lost: super::untracked(slam.records()),
+        maps: summary.maps.len(),
+        report,
+    }
+}
