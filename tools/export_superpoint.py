@@ -535,10 +535,17 @@ def _layout_provenance(net: Network, weights_sha256: str) -> Dict[str, str]:
 NARROW_FIRST_CONV_CHANNELS = 16
 
 
+def is_narrow_width(first_conv_channels: int) -> bool:
+    """Whether a first convolution of this many output channels is narrow
+    (see ``NARROW_FIRST_CONV_CHANNELS``): the one place that decides it, for
+    the exporter (a ``Network``) and the quantiser (an ONNX graph)."""
+    return first_conv_channels <= NARROW_FIRST_CONV_CHANNELS
+
+
 def is_narrow(net: Network) -> bool:
-    """Whether ``net``'s first convolution is narrow (see ``NARROW_FIRST_CONV_CHANNELS``)."""
+    """Whether ``net``'s first convolution is narrow (``is_narrow_width``)."""
     first = next((layer for layer in net.backbone if layer.kind == "conv"), None)
-    return first is not None and first.weight.shape[0] <= NARROW_FIRST_CONV_CHANNELS
+    return first is not None and is_narrow_width(first.weight.shape[0])
 
 
 def _channel_softmax_decomposed(g: "_GraphBuilder", logits: str) -> str:

@@ -514,7 +514,7 @@ def first_conv_in_fp32(model: onnx.ModelProto) -> onnx.ModelProto:
     the lite network's 59 ms at 1226x370, one thread). Without the pair the
     convolution runs in fp32 on the exact image, with the same (int8-rounded)
     weights and the same output quantiser, whose zero point 0 also does the
-    ReLU: 5 ms. Only for narrow networks (``export_superpoint.is_narrow``);
+    ReLU: 5 ms. Only for narrow networks (``export_superpoint.is_narrow_width``);
     on the full network's 64-channel first convolution it gave nothing.
     """
     g = model.graph
@@ -566,7 +566,7 @@ def quantize(weights: str, out: str, data: Optional[str] = None, variant: Varian
             f.write(folded.SerializeToString(deterministic=True))
         model, computed = quantize_model(fp32, images, variant, exclude=head_output_convs(folded),
                                          ranges=ranges)
-    narrow = first_conv_out_channels(folded) <= ex.NARROW_FIRST_CONV_CHANNELS
+    narrow = ex.is_narrow_width(first_conv_out_channels(folded))
     if narrow:
         model = first_conv_in_fp32(model)
     if ranges_cache and ranges is None:
