@@ -13,7 +13,7 @@ use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::{LieGroup, Se3};
 use crate::tracking::{
     match_descriptors, match_projected, pnp_ransac, refine_pose, visible_in_frame, Frame,
-    VisiblePoint,
+    VisiblePoint, PNP_RANSAC_ITERATIONS,
 };
 
 use super::drift::{LoopDrift, Travel};
@@ -291,7 +291,7 @@ fn run_stages(
     if !go_on(counts, LoopStage::DescriptorMatches) {
         return Ok(());
     }
-    let Some(ransac) = pnp_ransac(&frame, map, &matches, rig)? else {
+    let Some(ransac) = pnp_ransac(&frame, map, &matches, rig, PNP_RANSAC_ITERATIONS)? else {
         return Ok(());
     };
     counts.ransac_inliers = Some(ransac.inliers);

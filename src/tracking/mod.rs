@@ -37,7 +37,7 @@ pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use mono_init::{MIN_MONO_INIT_KEYPOINTS, MIN_MONO_INIT_MATCHES};
 pub use motion::MOTION_MODEL_RADIUS;
 pub(crate) use pose::refine_pose;
-pub(crate) use relocalise::pnp_ransac;
+pub(crate) use relocalise::{pnp_ransac, PNP_RANSAC_ITERATIONS};
 pub use relocalise::{RelocalisationCandidates, MAX_SCANNED_KEYFRAMES, MIN_RELOCALISATION_INLIERS};
 pub(crate) use search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
 pub use tracker::{

@@ -53,26 +53,53 @@ fn newest_keyframes(map: &Map) -> Vec<KeyFrameId> {
 }
 
 /// A RANSAC pose and how many matches agree with it.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub(crate) struct PnpPose {
     /// The frame's pose `T_cw`.
     pub pose_cw: Se3,
     /// RANSAC inliers.
     pub inliers: usize,
+    /// Which of the matches given are RANSAC inliers (indices into them).
+    pub inlier_matches: Vec<usize>,
 }
 
+impl PnpPose {
+    /// Starts `frame` from this pose with only the RANSAC inliers among
+    /// `matches` as its map points, as ORB-SLAM3's `Relocalization` does
+    /// before `PoseOptimization`: refined from the outliers too, a pose
+    /// of 54 inliers among 157 matches kept 1 (the low-texture lap's
+    /// first corner).
+    pub fn start(&self, frame: &mut Frame, matches: &[(usize, MapPointId)]) {
+        frame.pose_cw = self.pose_cw;
+        frame.map_points.iter_mut().for_each(|p| *p = None);
+        for &m in &self.inlier_matches {
+            if let Some(&(i, p)) = matches.get(m) {
+                if let Some(slot) = frame.map_points.get_mut(i) {
+                    *slot = Some(p);
+                }
+            }
+        }
+    }
+}
+
+/// ORB-SLAM3's RANSAC iterations for relocalisation (`PnPsolver::
+/// SetRansacParameters(0.99, 10, 300, …)`).
+pub(crate) const PNP_RANSAC_ITERATIONS: i32 = 300;
+
 /// A pose from 3-D/2-D matches by OpenCV's `solvePnPRansac` (EPnP inside
-/// RANSAC, 4 px threshold at level 0); `None` when it fails or fewer than
-/// 10 matches agree.
+/// RANSAC, at most `iterations`, 4 px threshold at level 0); `None` when
+/// it fails or fewer than 10 matches agree.
 pub(crate) fn pnp_ransac(
     frame: &Frame,
     map: &Map,
     matches: &[(usize, MapPointId)],
     rig: &CameraRig,
+    iterations: i32,
 ) -> Result<Option<PnpPose>, SlamError> {
     let mut object = Vector::<Point3f>::new();
     let mut image = Vector::<Point2f>::new();
-    for (i, id) in matches {
+    let mut used = Vec::with_capacity(matches.len());
+    for (m, (i, id)) in matches.iter().enumerate() {
         let (Ok(p), Some(kp)) = (map.map_point(*id), frame.features.keypoints.get(*i)) else {
             continue;
         };
@@ -82,6 +109,7 @@ pub(crate) fn pnp_ransac(
             p.position.z as f32,
         ));
         image.push(Point2f::new(kp.x, kp.y));
+        used.push(m);
     }
     if object.len() < 6 {
         return Ok(None);
@@ -100,7 +128,7 @@ pub(crate) fn pnp_ransac(
         &mut rvec,
         &mut tvec,
         false,
-        300,
+        iterations,
         4.0,
         0.99,
         &mut inliers,
@@ -114,9 +142,14 @@ pub(crate) fn pnp_ransac(
     let axis = Vector3::new(r(&rvec, 0)?, r(&rvec, 1)?, r(&rvec, 2)?);
     let t = Vector3::new(r(&tvec, 0)?, r(&tvec, 1)?, r(&tvec, 2)?);
     let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::new(axis));
+    let inlier_matches = inliers
+        .iter()
+        .filter_map(|k| used.get(usize::try_from(k).ok()?).copied())
+        .collect();
     Ok(Some(PnpPose {
         pose_cw: Se3::new(rotation, t),
         inliers: inliers.len(),
+        inlier_matches,
     }))
 }
 
@@ -202,7 +235,7 @@ fn relocalise_among(
             );
             continue;
         }
-        let Some(pose) = pnp_ransac(frame, map, &matches, rig)? else {
+        let Some(pose) = pnp_ransac(frame, map, &matches, rig, PNP_RANSAC_ITERATIONS)? else {
             tracing::trace!(
                 frame = frame.index,
                 keyframe = kf.0,

@@ -15,7 +15,8 @@ use super::keyframe::{
 use super::local_map::track_local_map;
 use super::mono_init::MonoInitialiser;
 use super::motion::{
-    track_last_frame, track_reference_keyframe, track_with_motion_model, MIN_POSE_INLIERS,
+    track_last_frame, track_last_frame_unratioed, track_reference_keyframe,
+    track_with_motion_model, MIN_POSE_INLIERS,
 };
 use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
 use crate::camera::{CameraRig, Sensor};
@@ -44,6 +45,9 @@ pub enum TrackingMethod {
     /// Descriptor matching against the last frame (where the motion model
     /// and the reference keyframe left too few local-map inliers).
     LastFrame,
+    /// Mutual nearest neighbours against the last frame, without the ratio
+    /// test, and PnP RANSAC: the last start before a frame is lost.
+    MutualNearestNeighbours,
     /// Relocalisation against the keyframes.
     Relocalisation,
     /// No pose.
@@ -124,6 +128,8 @@ enum Start {
     LastFrame,
     /// The motion model's rejected pose and matches.
     RejectedPrediction(RejectedPrediction),
+    /// Mutual nearest neighbours against the last frame, no ratio test.
+    MutualNearestNeighbours,
 }
 
 impl Start {
@@ -133,6 +139,7 @@ impl Start {
             Start::ReferenceKeyFrame => TrackingMethod::ReferenceKeyFrame,
             Start::LastFrame => TrackingMethod::LastFrame,
             Start::RejectedPrediction(_) => TrackingMethod::MotionModel,
+            Start::MutualNearestNeighbours => TrackingMethod::MutualNearestNeighbours,
         }
     }
 }
@@ -341,10 +348,12 @@ impl Tracker {
             }
             if inliers < needed && method != TrackingMethod::Relocalisation {
                 // Tracking would be lost: try the last frame's points, the
-                // view closest to this one, and then the motion model's
-                // pose that failed its quarter rule, before giving up.
+                // view closest to this one, then the motion model's pose
+                // that failed its quarter rule, and then the last frame's
+                // points without the ratio test, before giving up.
                 let mut alternatives = vec![Start::LastFrame];
                 alternatives.extend(rejected.map(Start::RejectedPrediction));
+                alternatives.push(Start::MutualNearestNeighbours);
                 for alternative in alternatives {
                     if inliers >= needed || method == alternative.method() {
                         continue;
@@ -543,6 +552,7 @@ impl Tracker {
         let tracked = match alternative {
             Start::ReferenceKeyFrame => self.track_reference(frame, map)?,
             Start::LastFrame => self.track_last(frame, map)?,
+            Start::MutualNearestNeighbours => self.track_last_unratioed(frame, map)?,
             Start::RejectedPrediction(start) => {
                 (frame.pose_cw, frame.map_points) = (start.pose_cw, start.map_points.clone());
                 true
@@ -573,6 +583,15 @@ impl Tracker {
             return Ok(false);
         };
         track_last_frame(frame, last, map, &self.rig)
+    }
+
+    /// Tracks the last frame's points by mutual nearest neighbour (no ratio
+    /// test) and PnP RANSAC.
+    fn track_last_unratioed(&self, frame: &mut Frame, map: &Map) -> Result<bool, SlamError> {
+        let Some(last) = self.last_frame.as_ref() else {
+            return Ok(false);
+        };
+        track_last_frame_unratioed(frame, last, map, &self.rig)
     }
 
     /// Motion model when there is a velocity, else (or when it fails) the
@@ -611,6 +630,9 @@ impl Tracker {
         if let Some(start) = rejected {
             (frame.pose_cw, frame.map_points) = (start.pose_cw, start.map_points);
             return Ok((TrackingMethod::MotionModel, false, None));
+        }
+        if self.track_last_unratioed(frame, map)? {
+            return Ok((TrackingMethod::MutualNearestNeighbours, false, None));
         }
         Ok((TrackingMethod::None, false, None))
     }

@@ -1,0 +1,96 @@
+//! The bare-façade lap's start and first corner: `spslam synth --scene
+//! loop --condition low-texture` (plaster walls, a few identical windows),
+//! 640×480 as in the suite's `loop_lowtex_*_sp_anms`, its first 36 frames,
+//! `spslam run --inline-mapping` with SuperPoint + ANMS (the defaults:
+//! int8, one level), stereo and RGB-D.
+//!
+//! The shipped weights' descriptors seldom pass the ratio test on these
+//! walls: between frames 20 and 21, where an 11.5° turn starts at once and
+//! moves the image 78 px, 27 of 1000 keypoints pass ORB-SLAM3's 0.7 while
+//! 150 of the 239 mutual nearest neighbours are right. The motion model,
+//! the reference keyframe and the last frame then all failed and frames
+//! 21–25 were lost in stereo (a second map from frame 26); in RGB-D the
+//! frame after initialisation (no velocity yet) was lost the same way, and
+//! frames 1–5. Tracking now tries the last frame's points by mutual
+//! nearest neighbour without the ratio test as its last start, with PnP
+//! RANSAC run long enough for a third of them to be right and only its
+//! inliers kept (`src/tracking/motion.rs`, `track_last_frame_unratioed`).
+//!
+//! Measured (AMD EPYC with VNNI): every frame in one map, ATE (SE3)
+//! 0.014 m stereo and 0.040 m RGB-D; the bound, 0.12 m, is three times the
+//! larger, and a pose from a wrong RANSAC consensus is metres off.
+
+mod common;
+
+use common::cli::{logs, spslam};
+use common::temp_dir::TempDir;
+
+/// Frames run: to just past the first corner (frames 21–28).
+const FRAMES: usize = 36;
+/// ATE (SE3) bound in metres over those frames.
+const MAX_ATE_M: f64 = 0.12;
+
+/// Writes the scene once per sensor's test and runs it; returns the report.
+fn run_low_texture(sensor: &str) -> serde_json::Value {
+    let dir = TempDir::new("low-texture-corner", sensor);
+    let frames = FRAMES.to_string();
+    let synth = spslam()
+        .args(["synth", "--scene", "loop", "--condition", "low-texture"])
+        .args(["--frames", &frames, "--out"])
+        .arg(dir.path())
+        .output()
+        .expect("run spslam synth");
+    assert!(synth.status.success(), "{}", logs(&synth));
+    let out = dir.path().join("run");
+    let dataset = format!("synth:{}", dir.path().display());
+    let run = spslam()
+        .args(["run", "--dataset", &dataset, "--sensor", sensor])
+        .args(["--inline-mapping", "--extractor", "superpoint"])
+        .args(["--anms", "kdtree", "--out"])
+        .arg(&out)
+        .output()
+        .expect("run spslam run");
+    assert_eq!(run.status.code(), Some(0), "{}", logs(&run));
+    let text = std::fs::read_to_string(out.join("report.json")).expect("report.json written");
+    serde_json::from_str(&text).expect("report.json parses")
+}
+
+fn assert_tracked_in_one_map(sensor: &str) {
+    let report = run_low_texture(sensor);
+    let records = report["frames"].as_array().expect("per-frame records");
+    assert_eq!(records.len(), FRAMES);
+    let lost: Vec<u64> = records
+        .iter()
+        .filter(|r| r["state"] != "Ok")
+        .filter_map(|r| r["index"].as_u64())
+        .collect();
+    let maps: std::collections::BTreeSet<u64> =
+        records.iter().filter_map(|r| r["map"].as_u64()).collect();
+    let starts: Vec<String> = records
+        .iter()
+        .filter(|r| r["method"] != "MotionModel")
+        .map(|r| format!("{}: {} {}", r["index"], r["method"], r["inliers"]))
+        .collect();
+    let ate = report["evaluation"]["ate"]["se3_rmse"].as_f64();
+    eprintln!("{sensor}: lost {lost:?}; maps {maps:?}; ATE {ate:?}; starts {starts:?}");
+    assert!(lost.is_empty(), "{sensor}: frames not tracked: {lost:?}");
+    assert_eq!(maps.len(), 1, "{sensor}: frames in maps {maps:?}");
+    let ate = ate.expect("the run is evaluated against the scene's truth");
+    assert!(ate <= MAX_ATE_M, "{sensor}: ATE {ate} m > {MAX_ATE_M} m");
+}
+
+#[test]
+fn the_bare_facades_first_corner_is_tracked_in_one_map_in_stereo() {
+    if !common::model_available("the_bare_facades_first_corner_is_tracked_in_one_map_in_stereo") {
+        return;
+    }
+    assert_tracked_in_one_map("stereo");
+}
+
+#[test]
+fn the_bare_facades_start_is_tracked_in_one_map_in_rgbd() {
+    if !common::model_available("the_bare_facades_start_is_tracked_in_one_map_in_rgbd") {
+        return;
+    }
+    assert_tracked_in_one_map("rgbd");
+}
