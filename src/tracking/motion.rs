@@ -276,8 +276,7 @@ fn track_by_descriptors(
     if 2 * from_last < matches.len() {
         if let Some(pose) = pnp_ransac(frame, map, &matches, rig, PNP_RANSAC_ITERATIONS)? {
             let (kept_pose, kept_points) = (frame.pose_cw, frame.map_points.clone());
-            assign(frame);
-            frame.pose_cw = pose.pose_cw;
+            pose.start(frame, &matches);
             let from_pnp = refine_pose(frame, map, rig)?;
             tracing::debug!(
                 frame = frame.index,

@@ -320,6 +320,7 @@ impl Tracker {
             map,
             &self.rig,
             self.relocalisation_candidates.as_deref(),
+            self.reference,
         )? {
             self.last_relocalisation_frame = Some(frame.index);
             (TrackingMethod::Relocalisation, false, None)
