@@ -17,7 +17,7 @@
 
 mod common;
 
-use common::cli::{logs, spslam};
+use common::cli::{frames_lost_and_maps, synth_then_run};
 use common::temp_dir::TempDir;
 
 /// Frames run: to just past the third corner (frames 134–143).
@@ -30,42 +30,33 @@ fn the_dim_laps_third_corner_is_tracked_in_one_map_in_rgbd() {
     }
     let dir = TempDir::new("low-light-corner", "rgbd");
     let frames = FRAMES.to_string();
-    let synth = spslam()
-        .args(["synth", "--scene", "loop", "--condition", "low-light"])
-        .args(["--frames", &frames, "--out"])
-        .arg(dir.path())
-        .output()
-        .expect("run spslam synth");
-    assert!(synth.status.success(), "{}", logs(&synth));
-    let out = dir.path().join("run");
     let dataset = format!("tum:{}", dir.path().join("sequences/00").display());
-    let run = spslam()
-        .args(["run", "--dataset", &dataset, "--inline-mapping"])
-        .args(["--extractor", "superpoint", "--anms", "kdtree", "--out"])
-        .arg(&out)
-        .output()
-        .expect("run spslam run");
-    assert_eq!(run.status.code(), Some(0), "{}", logs(&run));
-    let text = std::fs::read_to_string(out.join("report.json")).expect("report.json written");
-    let report: serde_json::Value = serde_json::from_str(&text).expect("report.json parses");
-    let records = report["frames"].as_array().expect("per-frame records");
-    assert_eq!(records.len(), FRAMES, "{}", logs(&run));
-    let lost: Vec<u64> = records
-        .iter()
-        .filter(|r| r["state"] != "Ok")
-        .filter_map(|r| r["index"].as_u64())
-        .collect();
-    let maps: std::collections::BTreeSet<u64> =
-        records.iter().filter_map(|r| r["map"].as_u64()).collect();
+    let report = synth_then_run(
+        dir.path(),
+        &[
+            "--scene",
+            "loop",
+            "--condition",
+            "low-light",
+            "--frames",
+            &frames,
+        ],
+        &dataset,
+        &[
+            "--inline-mapping",
+            "--extractor",
+            "superpoint",
+            "--anms",
+            "kdtree",
+        ],
+    );
+    let (records, lost, maps) = frames_lost_and_maps(&report);
+    assert_eq!(records.len(), FRAMES);
     let corner: Vec<String> = records[134..144]
         .iter()
         .map(|r| format!("{}: {} {}", r["index"], r["method"], r["inliers"]))
         .collect();
     eprintln!("lost {lost:?}; maps {maps:?}; the corner: {corner:?}");
-    assert!(
-        lost.is_empty(),
-        "frames not tracked: {lost:?}\n{}",
-        logs(&run)
-    );
+    assert!(lost.is_empty(), "frames not tracked: {lost:?}");
     assert_eq!(maps.len(), 1, "frames in maps {maps:?}");
 }

@@ -22,7 +22,7 @@
 
 mod common;
 
-use common::cli::{logs, spslam};
+use common::cli::{frames_lost_and_maps, synth_then_run};
 use common::temp_dir::TempDir;
 
 /// Frames run: to just past the first corner (frames 21–28).
@@ -30,42 +30,33 @@ const FRAMES: usize = 36;
 /// ATE (SE3) bound in metres over those frames.
 const MAX_ATE_M: f64 = 0.12;
 
-/// Writes the scene once per sensor's test and runs it; returns the report.
-fn run_low_texture(sensor: &str) -> serde_json::Value {
+fn assert_tracked_in_one_map(sensor: &str) {
     let dir = TempDir::new("low-texture-corner", sensor);
     let frames = FRAMES.to_string();
-    let synth = spslam()
-        .args(["synth", "--scene", "loop", "--condition", "low-texture"])
-        .args(["--frames", &frames, "--out"])
-        .arg(dir.path())
-        .output()
-        .expect("run spslam synth");
-    assert!(synth.status.success(), "{}", logs(&synth));
-    let out = dir.path().join("run");
     let dataset = format!("synth:{}", dir.path().display());
-    let run = spslam()
-        .args(["run", "--dataset", &dataset, "--sensor", sensor])
-        .args(["--inline-mapping", "--extractor", "superpoint"])
-        .args(["--anms", "kdtree", "--out"])
-        .arg(&out)
-        .output()
-        .expect("run spslam run");
-    assert_eq!(run.status.code(), Some(0), "{}", logs(&run));
-    let text = std::fs::read_to_string(out.join("report.json")).expect("report.json written");
-    serde_json::from_str(&text).expect("report.json parses")
-}
-
-fn assert_tracked_in_one_map(sensor: &str) {
-    let report = run_low_texture(sensor);
-    let records = report["frames"].as_array().expect("per-frame records");
+    let report = synth_then_run(
+        dir.path(),
+        &[
+            "--scene",
+            "loop",
+            "--condition",
+            "low-texture",
+            "--frames",
+            &frames,
+        ],
+        &dataset,
+        &[
+            "--sensor",
+            sensor,
+            "--inline-mapping",
+            "--extractor",
+            "superpoint",
+            "--anms",
+            "kdtree",
+        ],
+    );
+    let (records, lost, maps) = frames_lost_and_maps(&report);
     assert_eq!(records.len(), FRAMES);
-    let lost: Vec<u64> = records
-        .iter()
-        .filter(|r| r["state"] != "Ok")
-        .filter_map(|r| r["index"].as_u64())
-        .collect();
-    let maps: std::collections::BTreeSet<u64> =
-        records.iter().filter_map(|r| r["map"].as_u64()).collect();
     let starts: Vec<String> = records
         .iter()
         .filter(|r| r["method"] != "MotionModel")

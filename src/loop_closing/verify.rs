@@ -294,7 +294,7 @@ fn run_stages(
     let Some(ransac) = pnp_ransac(&frame, map, &matches, rig, PNP_RANSAC_ITERATIONS)? else {
         return Ok(());
     };
-    counts.ransac_inliers = Some(ransac.inliers);
+    counts.ransac_inliers = Some(ransac.inliers());
     frame.pose_cw = ransac.pose_cw;
     for (i, p) in &matches {
         frame.map_points[*i] = Some(*p);
@@ -324,7 +324,7 @@ fn run_stages(
         query = query.0,
         candidate = candidate.0,
         descriptor_matches = matches.len(),
-        ransac_inliers = ransac.inliers,
+        ransac_inliers = ransac.inliers(),
         optimised,
         projection_matches = found,
         final_matches = matched,

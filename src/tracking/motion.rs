@@ -161,13 +161,18 @@ pub(crate) fn track_last_frame(
     map: &Map,
     rig: &CameraRig,
 ) -> Result<bool, SlamError> {
-    let points: Vec<(MapPointId, &Keypoint)> = last
+    let points = tracked_points(last, map);
+    track_by_descriptors(frame, &last.pose_cw, &points, map, rig, "last frame")
+}
+
+/// The frame's tracked points (live in `map`), each with its keypoint.
+fn tracked_points<'f>(frame: &'f Frame, map: &Map) -> Vec<(MapPointId, &'f Keypoint)> {
+    frame
         .map_points
         .iter()
-        .zip(&last.features.keypoints)
+        .zip(&frame.features.keypoints)
         .filter_map(|(p, k)| Some((map.resolve_point((*p)?)?, k)))
-        .collect();
-    track_by_descriptors(frame, &last.pose_cw, &points, map, rig, "last frame")
+        .collect()
 }
 
 /// The last start before a frame is lost: the last frame's tracked points
@@ -189,12 +194,7 @@ pub(crate) fn track_last_frame_unratioed(
     map: &Map,
     rig: &CameraRig,
 ) -> Result<bool, SlamError> {
-    let points: Vec<(MapPointId, &Keypoint)> = last
-        .map_points
-        .iter()
-        .zip(&last.features.keypoints)
-        .filter_map(|(p, k)| Some((map.resolve_point((*p)?)?, k)))
-        .collect();
+    let points = tracked_points(last, map);
     let matches = match_descriptors_in_view(frame, map, &points, UNRATIOED)?;
     if matches.len() < MIN_UNRATIOED_MATCHES {
         tracing::debug!(
@@ -217,7 +217,7 @@ pub(crate) fn track_last_frame_unratioed(
     tracing::debug!(
         frame = frame.index,
         matches = matches.len(),
-        ransac_inliers = pose.inliers,
+        ransac_inliers = pose.inliers(),
         inliers,
         "mutual nearest neighbours"
     );

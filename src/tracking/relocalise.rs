@@ -52,18 +52,21 @@ fn newest_keyframes(map: &Map) -> Vec<KeyFrameId> {
     ids.into_iter().rev().take(MAX_SCANNED_KEYFRAMES).collect()
 }
 
-/// A RANSAC pose and how many matches agree with it.
+/// A RANSAC pose and the matches that agree with it.
 #[derive(Debug, Clone)]
 pub(crate) struct PnpPose {
     /// The frame's pose `T_cw`.
     pub pose_cw: Se3,
-    /// RANSAC inliers.
-    pub inliers: usize,
     /// Which of the matches given are RANSAC inliers (indices into them).
     pub inlier_matches: Vec<usize>,
 }
 
 impl PnpPose {
+    /// RANSAC inliers.
+    pub fn inliers(&self) -> usize {
+        self.inlier_matches.len()
+    }
+
     /// Starts `frame` from this pose with only the RANSAC inliers among
     /// `matches` as its map points, as ORB-SLAM3's `Relocalization` does
     /// before `PoseOptimization`: refined from the outliers too, a pose
@@ -148,7 +151,6 @@ pub(crate) fn pnp_ransac(
         .collect();
     Ok(Some(PnpPose {
         pose_cw: Se3::new(rotation, t),
-        inliers: inliers.len(),
         inlier_matches,
     }))
 }
@@ -184,21 +186,14 @@ fn widen_by_projection(
     Ok(inliers)
 }
 
-/// ORB-SLAM3's `Relocalization` without bag-of-words: tries the
-/// [`MAX_SCANNED_KEYFRAMES`] newest keyframes; accepts the first pose with
-/// at least 50 inliers.
-#[cfg(test)]
-pub(crate) fn relocalise(frame: &mut Frame, map: &Map, rig: &CameraRig) -> Result<bool, SlamError> {
-    relocalise_among(frame, map, rig, &newest_keyframes(map))
-}
-
 /// Keyframes tried before the database's: the keyframe tracking was lost
 /// from and its best covisible ones.
 pub const NEAR_RELOCALISATION_KEYFRAMES: usize = 5;
 
 /// ORB-SLAM3's `Relocalization`: tries the keyframes `source` gives
-/// (best first) when there is one and it judges the frame, else the newest
-/// ones ([`relocalise`]). spslam tries the neighbourhood of `lost_from`
+/// (best first) when there is one and it judges the frame, else the
+/// [`MAX_SCANNED_KEYFRAMES`] newest ones; accepts the first pose with at
+/// least 50 inliers. spslam tries the neighbourhood of `lost_from`
 /// (the reference keyframe when tracking was lost, and its
 /// [`NEAR_RELOCALISATION_KEYFRAMES`] best covisible keyframes) first: a
 /// camera lost for a few frames is most likely still there, and where

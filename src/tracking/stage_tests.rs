@@ -6,7 +6,7 @@
 use nalgebra::Vector3;
 
 use super::keyframe::{needs_keyframe, KeyFrameContext};
-use super::relocalise::relocalise;
+use super::relocalise::relocalise_with;
 use crate::optim::LieGroup;
 use crate::test_world::{pose_at, PointWorld};
 
@@ -407,7 +407,9 @@ fn relocalisation_recovers_a_known_pose() {
     // frame starts at the identity pose.
     let truth = pose_at(Vector3::new(0.35, -0.1, 1.3), 4f64.to_radians());
     let (mut frame, _) = world.frame(50, &truth, true);
-    assert!(ok(relocalise(&mut frame, &map, &world.rig)));
+    assert!(ok(relocalise_with(
+        &mut frame, &map, &world.rig, None, None
+    )));
     let error = frame.pose_cw.compose(&truth.inverse());
     let translation = error.translation.norm();
     let rotation = error.rotation.angle().to_degrees();
@@ -424,6 +426,8 @@ fn relocalisation_fails_where_the_map_was_never_seen() {
     // Other points, with other descriptors.
     let elsewhere = PointWorld::new(99, 1500, (15.0, 5.0, 4.0, 35.0));
     let (mut frame, _) = elsewhere.frame(50, &pose_at(Vector3::zeros(), 0.0), true);
-    assert!(!ok(relocalise(&mut frame, &map, &world.rig)));
+    assert!(!ok(relocalise_with(
+        &mut frame, &map, &world.rig, None, None
+    )));
     assert_eq!(frame.tracked_count(), 0);
 }
