@@ -25,6 +25,9 @@ pub(crate) struct PointWorld {
     pub points: Vec<Vector3<f64>>,
     pub descriptors: Vec<Vec<f32>>,
     pub rig: CameraRig,
+    /// Pixels every stereo disparity reads short (a rig whose calibration
+    /// is off by a small yaw between the cameras); 0 for an exact rig.
+    pub disparity_offset: f64,
 }
 
 /// What a camera at some pose sees: per keypoint, the world point index.
@@ -45,6 +48,7 @@ pub(crate) fn rig() -> CameraRig {
         width: 640,
         height: 480,
         close_depth: 20.0,
+        far_points_stereo: false,
         max_depth: None,
         fps: 10.0,
     }
@@ -82,6 +86,7 @@ impl PointWorld {
             points,
             descriptors,
             rig: rig(),
+            disparity_offset: 0.0,
         }
     }
 
@@ -113,9 +118,10 @@ impl PointWorld {
                 octave: 0,
             });
             data.extend_from_slice(&self.descriptors[i]);
+            let disparity = c.bf / pc.z - self.disparity_offset;
             measurements.push(stereo.then_some(StereoMeasurement {
-                right_u: (u - c.bf / pc.z) as f32,
-                depth: pc.z as f32,
+                right_u: (u - disparity) as f32,
+                depth: (c.bf / disparity) as f32,
             }));
             point_of.push(i);
         }

@@ -1,12 +1,13 @@
 //! Stereo SLAM with SuperPoint on the KITTI 06 excerpt (51 frames), far
-//! points kept (ORB-SLAM3's stereo points beyond `ThDepth`), with what
-//! `spslam run` uses by default (the int8 network on
-//! `DEFAULT_SUPERPOINT_LEVELS` pyramid levels): every frame tracked, and
-//! the int8 run's ATE within 10 % of the fp32 network's on the same levels
-//! (25 % for the 7-bit-weight int8 model of CPUs without VNNI).
-//! The ATE and drift bounds are regression bounds from the measured values
-//! (`EVALUATION.md`, "Pyramid levels": int8 0.084 m / 1.01 %, fp32 0.081 m
-//! on one level).
+//! points kept (ORB-SLAM3's stereo points beyond `ThDepth`, observed with
+//! their bearing only: `map::observation`), with what `spslam run` uses by
+//! default (the int8 network on `DEFAULT_SUPERPOINT_LEVELS` pyramid
+//! levels): every frame tracked, and the int8 run's ATE within 10 % of the
+//! fp32 network's on the same levels (70 % for the 7-bit-weight int8 model
+//! of CPUs without VNNI). The ATE and drift bounds are regression bounds
+//! from the measured values (session 40, AMD EPYC with VNNI: int8 0.0372 m
+//! / 0.91 %, fp32 0.0374 m; the 7-bit model 0.0568 m; `EVALUATION.md`,
+//! "Far keypoints with their bearing only").
 
 mod common;
 
@@ -107,12 +108,13 @@ fn kitti_06_excerpt_superpoint_defaults_and_int8_vs_fp32() {
     // `features::int8_sums_saturate`). The 7-bit model follows fp32 less
     // closely (score correlation 0.963 against 0.989): measured with
     // `SPSLAM_MODEL_INT8=models/superpoint_int8_avx2.onnx` (its outputs do
-    // not depend on the kernels): ATE 0.0959 m, fp32 0.0805 m (+19 %);
-    // the 8-bit model on VNNI: +4 %.
+    // not depend on the kernels): ATE 0.0568 m, fp32 0.0374 m (+52 %;
+    // +19 % when far keypoints were stereo observations, at 0.096 and
+    // 0.081 m); the 8-bit model on VNNI: 0.0372 m (−1 %).
     let seven_bit = Precision::Int8
         .default_model_path()
         .ends_with(Precision::Int8.model_file(true));
-    let (ate_bound_m, int8_ratio) = if seven_bit { (0.11, 1.25) } else { (0.10, 1.1) };
+    let (ate_bound_m, int8_ratio) = if seven_bit { (0.07, 1.7) } else { (0.05, 1.1) };
     let default = run_kitti(&data, None);
     assert!(
         default.lost.is_empty(),
@@ -134,8 +136,8 @@ fn kitti_06_excerpt_superpoint_defaults_and_int8_vs_fp32() {
     let fp32 = run_kitti(&data, Some(Precision::Fp32));
     assert!(int8.lost.is_empty() && fp32.lost.is_empty());
     // The bound: int8 within 10 % of fp32 (3 mm slack for another
-    // machine's kernels; measured +4 %); 25 % for the 7-bit model
-    // (measured +19 %).
+    // machine's kernels; measured −1 %); 70 % for the 7-bit model
+    // (measured +52 %).
     assert!(
         int8.ate_m <= int8_ratio * fp32.ate_m + 0.003,
         "int8 ATE {} m vs fp32 {} m (7-bit int8 model: {seven_bit})",

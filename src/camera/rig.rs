@@ -30,6 +30,9 @@ pub struct CameraRig {
     pub height: usize,
     /// Stereo points closer than this are "close" (ORB-SLAM3's `mThDepth`), metres.
     pub close_depth: f64,
+    /// Far keypoints count as stereo observations (`Stereo.farPointsStereo`;
+    /// see [`stereo_depth_limit`](Self::stereo_depth_limit)).
+    pub far_points_stereo: bool,
     /// Stereo depths beyond this are dropped at frame construction, metres.
     pub max_depth: Option<f64>,
     /// Frames per second (sets the keyframe and relocalisation windows).
@@ -46,6 +49,17 @@ pub struct InvalidCamera {
 }
 
 impl CameraRig {
+    /// Keypoints with a depth below this count as stereo observations,
+    /// the others with their bearing only (`map::observation`'s policy):
+    /// the close depth, or no limit with `Stereo.farPointsStereo`.
+    pub fn stereo_depth_limit(&self) -> f64 {
+        if self.far_points_stereo {
+            f64::INFINITY
+        } else {
+            self.close_depth
+        }
+    }
+
     /// The stereo rig described by `settings` for images of `width` x
     /// `height` (see [`Self::for_sensor`]).
     pub fn from_settings(
@@ -98,6 +112,7 @@ impl CameraRig {
             width,
             height,
             close_depth,
+            far_points_stereo: settings.far_points_stereo,
             max_depth: settings.max_depth.filter(|d| *d > 0.0),
             fps: if c.fps > 0.0 { c.fps } else { 10.0 },
         })

@@ -64,7 +64,7 @@ pub fn build_map_bundle(
             let Some(obs) = map
                 .keyframe(*kf)
                 .ok()
-                .and_then(|k| k.measurements.observation(*index))
+                .and_then(|k| k.measurements.observation(*index, rig.stereo_depth_limit()))
             else {
                 continue;
             };

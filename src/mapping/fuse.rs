@@ -52,7 +52,7 @@ fn fuse_candidate(
     ) {
         let ok = kf
             .measurements
-            .observation(i)
+            .observation(i, rig.stereo_depth_limit())
             .is_some_and(|obs| obs.accepts_prediction(&predicted));
         if !ok {
             continue;

@@ -183,7 +183,7 @@ fn reprojects_well(view: &View, i: usize, x: &Vector3<f64>, rig: &CameraRig) -> 
     }
     let predicted = rig.camera.project_stereo(&pc);
     view.measurements
-        .observation(i)
+        .observation(i, rig.stereo_depth_limit())
         .is_some_and(|obs| obs.accepts_prediction(&predicted))
 }
 

@@ -167,6 +167,12 @@ pub struct SlamSettings {
     pub camera: CameraSettings,
     /// ORB-SLAM3's `ThDepth`: stereo points closer than `ThDepth · baseline` are "close".
     pub th_depth: f64,
+    /// `Stereo.farPointsStereo`: far keypoints (beyond `ThDepth · baseline`)
+    /// count as stereo observations, as in ORB-SLAM3, instead of with
+    /// their bearing only (the default; see `map::observation`). For rigs
+    /// whose calibration is exact to a few hundredths of a pixel, such as
+    /// rendered ones.
+    pub far_points_stereo: bool,
     /// RGB-D depth units per metre (`RGBD.DepthMapFactor`, ORB-SLAM3's
     /// `DepthMapFactor`), e.g. 5000 for TUM.
     pub depth_map_factor: Option<f64>,
@@ -195,6 +201,7 @@ impl SlamSettings {
                 baseline: Some(baseline),
             },
             th_depth: DEFAULT_TH_DEPTH,
+            far_points_stereo: false,
             depth_map_factor: None,
             max_depth: None,
             extractor: ExtractorSettings::default(),
@@ -217,6 +224,16 @@ impl SlamSettings {
         if th_depth <= 0.0 {
             return Err(reader.invalid("Stereo.ThDepth", th_depth, "must be positive"));
         }
+        let far_points_stereo =
+            match reader.optional_i64(&["Stereo.farPointsStereo"])? {
+                None | Some(0) => false,
+                Some(1) => true,
+                Some(v) => return Err(reader.invalid(
+                    "Stereo.farPointsStereo",
+                    v as f64,
+                    "must be 0 (far keypoints give their bearing only) or 1 (stereo, as ORB-SLAM3)",
+                )),
+            };
         let depth_map_factor = reader.optional_f64(&["RGBD.DepthMapFactor", "DepthMapFactor"])?;
         if let Some(f) = depth_map_factor {
             if f <= 0.0 {
@@ -234,6 +251,7 @@ impl SlamSettings {
         Ok(Self {
             camera,
             th_depth,
+            far_points_stereo,
             depth_map_factor,
             max_depth,
             extractor,

@@ -112,6 +112,8 @@ impl From<&StoredRig> for CameraRig {
             width: r.width,
             height: r.height,
             close_depth: r.close_depth,
+            // Not stored: a loaded map follows the default policy.
+            far_points_stereo: false,
             max_depth: r.max_depth,
             fps: r.fps,
         }

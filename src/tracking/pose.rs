@@ -8,13 +8,18 @@ use super::frame::Frame;
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 
-/// The observation keypoint `i` of `frame` makes (the one policy:
-/// [`keypoint_observation`]).
-pub(crate) fn frame_observation(frame: &Frame, i: usize) -> Option<Observation> {
+/// The observation keypoint `i` of `frame` makes with the rig's stereo
+/// depth limit (the one policy: [`keypoint_observation`]).
+pub(crate) fn frame_observation(
+    frame: &Frame,
+    i: usize,
+    stereo_depth_limit: f64,
+) -> Option<Observation> {
     keypoint_observation(
         frame.features.keypoints.get(i)?,
         frame.stereo.get(i).copied().flatten(),
         &frame.scales,
+        stereo_depth_limit,
     )
 }
 
@@ -32,7 +37,10 @@ pub(crate) fn refine_pose(
         let Some(point) = point.and_then(|p| map.resolve_point(p)) else {
             continue;
         };
-        let (Ok(p), Some(observation)) = (map.map_point(point), frame_observation(frame, i)) else {
+        let (Ok(p), Some(observation)) = (
+            map.map_point(point),
+            frame_observation(frame, i, rig.stereo_depth_limit()),
+        ) else {
             continue;
         };
         indices.push(i);

@@ -38,6 +38,12 @@ pub struct SynthArgs {
     /// Stereo baseline in metres [default: 0.5 outdoors, 0.12 for wobbly].
     #[arg(long)]
     baseline: Option<f64>,
+    /// A stereo calibration error: every disparity reads this many pixels
+    /// short (the right camera turned about its y axis; the written
+    /// calibration still says the pair is parallel; the offset holds at the
+    /// image centre and grows towards the sides). 0 = exact [default: 0].
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    disparity_offset: Option<f64>,
     /// Frames per second [default: 10 outdoors, 20 for wobbly].
     #[arg(long)]
     fps: Option<f64>,
@@ -103,6 +109,7 @@ fn config_from(args: &SynthArgs) -> SyntheticConfig {
     };
     set(&mut config.focal_length, args.focal);
     set(&mut config.baseline, args.baseline);
+    set(&mut config.disparity_offset, args.disparity_offset);
     set(&mut config.fps, args.fps);
     set(&mut config.speed, args.speed);
     set(&mut config.pixel_noise, args.noise);

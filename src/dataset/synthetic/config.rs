@@ -85,6 +85,12 @@ pub struct SyntheticConfig {
     pub focal_length: f64,
     /// Stereo baseline (metres).
     pub baseline: f64,
+    /// A stereo calibration error, in pixels every disparity reads short:
+    /// the right camera is turned about its y axis by `atan(offset / f)`
+    /// while the written calibration says the pair is parallel (real rigs
+    /// keep a residual of this kind after rectification). 0: exact.
+    #[serde(default)]
+    pub disparity_offset: f64,
     /// Frame rate (frames per second).
     pub fps: f64,
     /// Speed along the path (metres per second). For `loop` it is rounded
@@ -137,6 +143,7 @@ impl SyntheticConfig {
             height: 480,
             focal_length: 400.0,
             baseline,
+            disparity_offset: 0.0,
             fps,
             speed,
             frames: None,
@@ -179,6 +186,12 @@ impl SyntheticConfig {
             if !(value.is_finite() && value > 0.0) {
                 return invalid(field, format!("is {value}; it must be positive"));
             }
+        }
+        if !(self.disparity_offset.is_finite() && self.disparity_offset.abs() <= 5.0) {
+            return invalid(
+                "disparity_offset",
+                format!("is {}; it must lie in -5..=5 pixels", self.disparity_offset),
+            );
         }
         if self.frames == Some(0) {
             return invalid("frames", "is 0; ask for at least one frame".into());

@@ -54,7 +54,8 @@ impl SyntheticSequence {
             config.height,
             config.focal_length,
             config.baseline,
-        );
+        )
+        .with_disparity_offset(config.disparity_offset);
         let scene = build_scene(&config);
         Ok(Self {
             config,
