@@ -289,3 +289,34 @@ fn rgbd_and_camera_type_keys_are_read_as_orb_slam3_reads_them() {
     );
     assert!(fisheye.to_string().contains("KannalaBrandt8"), "{fisheye}");
 }
+
+/// `Stereo.farPointsStereo`: off by default (far keypoints give their
+/// bearing), 1 turns ORB-SLAM3's stereo edges back on, anything else is
+/// refused with the key named.
+#[test]
+fn far_points_stereo_is_off_by_default_and_reads_zero_or_one() {
+    let default = SlamSettings::from_file(write("far0.yaml", OLD_LAYOUT)).expect("default");
+    assert!(!default.far_points_stereo);
+    let on = SlamSettings::from_file(write(
+        "far1.yaml",
+        &format!("{OLD_LAYOUT}Stereo.farPointsStereo: 1\n"),
+    ))
+    .expect("farPointsStereo: 1");
+    assert!(on.far_points_stereo);
+    let rig = spslam::camera::CameraRig::from_settings(&on, 752, 480);
+    let rig = rig.expect("rig");
+    assert_eq!(rig.stereo_depth_limit(), f64::INFINITY);
+    let rig = spslam::camera::CameraRig::from_settings(&default, 752, 480).expect("rig");
+    assert!((rig.stereo_depth_limit() - 35.0 * 47.90639384423901 / 435.2).abs() < 1e-9);
+    let path = write(
+        "far2.yaml",
+        &format!("{OLD_LAYOUT}Stereo.farPointsStereo: 2\n"),
+    );
+    let Err(e) = SlamSettings::from_file(&path) else {
+        panic!("farPointsStereo: 2 was accepted")
+    };
+    assert!(
+        matches!(&e, SettingsError::Invalid { key, .. } if key == "Stereo.farPointsStereo"),
+        "{e}"
+    );
+}
