@@ -24,7 +24,7 @@
 //! far observation. On the KITTI 06 excerpt a +0.1 px disparity offset
 //! removes the whole 0.4 % scale error that ORB-SLAM3 itself shows there,
 //! and monocular far observations remove most of it (EVALUATION.md, "Far
-//! keypoints as monocular observations"). Their bearing still counts.
+//! keypoints with their bearing only"). Their bearing still counts.
 //!
 //! Whether a *new* point is created from a close or a far stereo keypoint
 //! is tracking's and local mapping's decision; once a keypoint is
