@@ -14,6 +14,7 @@
 
 mod assembly;
 mod atlas;
+mod gap_motion;
 mod global_ba_driver;
 mod global_ba_thread;
 mod lagged_mapping;
@@ -32,6 +33,7 @@ pub use assembly::{
     assemble_system, file_fingerprint, AssembledSystem, ExtractorKind, SystemOptions,
 };
 pub use atlas::{Atlas, AtlasMap, MapIndex};
+pub use gap_motion::GAP_HORIZON_S;
 pub use global_ba_thread::GlobalBaHook;
 pub use local_mapping_thread::{MappingResult, MappingThread};
 pub use loop_closing_stage::{LoopCandidateRecord, LoopRecord, MergeRecord, RejectedLoopRecord};

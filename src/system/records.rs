@@ -102,8 +102,11 @@ pub struct MapSummary {
     /// Live map points.
     pub map_points: usize,
     /// For maps after the first: the input frame whose pose (the last one
-    /// known before the map began) anchors the map's first pose in the
-    /// trajectory, which is in the first map's frame.
+    /// tracked before the map began) anchors the map's first pose in the
+    /// trajectory, which is in the first map's frame: the map's first
+    /// tracked frame sits where that frame's pose, carried on at its
+    /// velocity over the gap, puts it (for at most
+    /// [`crate::system::GAP_HORIZON_S`]).
     pub anchored_at_frame: Option<usize>,
     /// The map it was merged into, if loop closing merged it.
     #[serde(skip_serializing_if = "Option::is_none")]

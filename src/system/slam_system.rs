@@ -472,8 +472,9 @@ impl SlamSystem {
     }
 
     /// Records an input frame that could not be read (a missing or corrupt
-    /// image): it counts as lost, keeps the previous pose in the
-    /// trajectory, and tracking goes on with the next frame.
+    /// image): it counts as lost, its trajectory row carries on the last
+    /// tracked pose and velocity (see [`super::GAP_HORIZON_S`]), and
+    /// tracking goes on with the next frame.
     pub fn skip_unreadable(
         &mut self,
         index: usize,

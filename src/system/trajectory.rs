@@ -1,6 +1,7 @@
 //! What a run's records say, in the world frame: the anchored
 //! trajectory (one pose per input frame, later maps anchored where the
-//! previous one left off), the keyframes' trajectory, and the totals.
+//! previous one's motion carries the camera over the gap), the keyframes'
+//! trajectory, and the totals.
 
 use std::collections::BTreeMap;
 
@@ -10,6 +11,7 @@ use crate::optim::{LieGroup, Se3};
 use crate::tracking::{TrackingMethod, TrackingState};
 
 use super::atlas::MapIndex;
+use super::gap_motion::GapMotion;
 use super::records::{FrameTimings, MapSummary, SlamSummary};
 use super::SlamSystem;
 
@@ -21,11 +23,13 @@ impl SlamSystem {
     /// input frame, from its reference keyframe's current pose.
     ///
     /// A frame without a pose (before initialisation, lost, unreadable)
-    /// repeats the previous pose (identity at first). The world is the
-    /// first map's frame; a later map is anchored so that its first
-    /// tracked frame sits at the last pose known before it began (see
+    /// gets the last tracked pose carried on at the last velocity for up
+    /// to [`super::GAP_HORIZON_S`] (identity before the first tracked frame; see
+    /// [`super::gap_motion`]). The world is the first map's frame; a later
+    /// map is anchored so that its first tracked frame sits where the last
+    /// map's motion, carried over the gap the same way, puts it (see
     /// [`MapSummary::anchored_at_frame`]): the motion during the gap is
-    /// unknown, and the map's drift from there on is its own.
+    /// not measured, and the map's drift from there on is its own.
     pub fn trajectory(&self) -> Result<Vec<(f64, Se3)>, SlamError> {
         Ok(self
             .anchored_poses()?
@@ -90,11 +94,12 @@ impl SlamSystem {
     fn anchored_poses(&self) -> Result<Vec<(f64, Se3, Option<(MapIndex, usize)>)>, SlamError> {
         // Map → T_world,map.
         let mut anchors: BTreeMap<MapIndex, Se3> = BTreeMap::new();
-        let mut previous = Se3::identity();
+        let mut motion = GapMotion::default();
         let mut previous_frame = None;
         let mut out = Vec::with_capacity(self.records.len());
         for record in &self.records {
             let mut anchored = None;
+            let mut pose = None;
             if let Some(rel) = record.relative_pose {
                 let Some(entry) = self.atlas.get(rel.map) else {
                     return Err(SlamError::UnknownAtlasMap { map: rel.map });
@@ -110,13 +115,16 @@ impl SlamSystem {
                         if rel.map > 0 {
                             anchored = Some((rel.map, previous_frame.unwrap_or(record.index)));
                         }
-                        previous.compose(&in_map.inverse())
+                        motion.predict(record.timestamp).compose(&in_map.inverse())
                     });
-                    previous = anchor.compose(&in_map);
+                    let world_pose = anchor.compose(&in_map);
+                    motion.tracked(record.timestamp, world_pose);
                     previous_frame = Some(record.index);
+                    pose = Some(world_pose);
                 }
             }
-            out.push((record.timestamp, previous, anchored));
+            let pose = pose.unwrap_or_else(|| motion.predict(record.timestamp));
+            out.push((record.timestamp, pose, anchored));
         }
         Ok(out)
     }

@@ -238,10 +238,11 @@ fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
             )),
             (0, _, _) => {}
             (k, Some(n), _) => text.push_str(&format!(
-                "; anchored at frame {n}: frames of map {k} are anchored at the pose of frame {n}, the last known before the loss"
+                "; anchored at frame {n}: frames of map {k} are anchored where the pose of frame {n}, the last tracked before the loss, carried on at its velocity for up to {horizon} s, puts them",
+                horizon = spslam::system::GAP_HORIZON_S
             )),
             (_, None, _) => {
-                text.push_str("; no frame tracked in it: its frames repeat the last known pose")
+                text.push_str("; no frame tracked in it: its frames carry on the last known pose and velocity")
             }
         }
         text.push('\n');
