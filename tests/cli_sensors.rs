@@ -256,3 +256,72 @@ fn bad_depth_images_are_named_and_skipped_or_refused() {
         "{text}"
     );
 }
+
+#[test]
+fn lost_rows_omit_leaves_untracked_frames_out_of_tum_files_and_is_refused_for_kitti() {
+    let data = synth("lost-rows");
+    let sequence = data.path().join("sequences/00");
+    // Frame 5's depth map is an 8-bit image: the frame is unreadable,
+    // counted as lost.
+    std::fs::copy(
+        sequence.join("image_0/000005.png"),
+        sequence.join("depth/000005.png"),
+    )
+    .expect("copy");
+    let rows = |out: &Path| -> Vec<f64> {
+        let text = std::fs::read_to_string(out.join("trajectory_tum.txt")).expect("trajectory");
+        text.lines()
+            .filter(|l| !l.starts_with('#'))
+            .filter_map(|l| l.split_whitespace().next()?.parse().ok())
+            .collect()
+    };
+    let tum = format!("tum:{}", sequence.display());
+
+    let predicted = data.path().join("predict");
+    let output = run(&tum, &predicted, &[]);
+    assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
+    assert_eq!(rows(&predicted).len(), FRAMES, "a row per frame by default");
+
+    let omitted = data.path().join("omit");
+    let output = run(&tum, &omitted, &["--lost-rows", "omit"]);
+    assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
+    let r = report(&omitted);
+    let tracked_stamps: Vec<f64> = r["frames"]
+        .as_array()
+        .map(|frames| {
+            frames
+                .iter()
+                .filter(|f| f["state"] == "Ok")
+                .filter_map(|f| f["timestamp"].as_f64())
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(tracked_stamps.len() < FRAMES, "frame 5 is not tracked");
+    let written = rows(&omitted);
+    assert_eq!(
+        written.len(),
+        tracked_stamps.len(),
+        "one row per tracked frame"
+    );
+    for (w, t) in written.iter().zip(&tracked_stamps) {
+        assert!((w - t).abs() < 1e-6, "row at {w} s, tracked frame at {t} s");
+    }
+    assert_eq!(
+        r["evaluation"]["matched_poses"].as_u64(),
+        Some(written.len() as u64),
+        "the evaluation covers the rows written"
+    );
+
+    // A KITTI-format trajectory needs every row: refused before the run.
+    let output = run(
+        &format!("synth:{}", data.path().display()),
+        &data.path().join("omit-kitti"),
+        &["--lost-rows", "omit"],
+    );
+    let text = logs(&output);
+    assert_eq!(output.status.code(), Some(1), "{text}");
+    assert!(
+        text.contains("--lost-rows omit") && text.contains("KITTI-format"),
+        "{text}"
+    );
+}

@@ -36,7 +36,7 @@ use spslam::system::{
 };
 
 use frame_loop::{FrameLoop, RunEnd};
-use output::RunOutputs;
+use output::{LostRows, RunOutputs};
 use pipeline::{with_extraction_stage, Reading};
 use signals::StopRequest;
 use source::{Source, DEFAULT_DEPTH_MAP_FACTOR};
@@ -198,6 +198,14 @@ pub struct RunArgs {
     /// extents), xy, xz or yz.
     #[arg(long, value_enum, default_value_t = PlotPlaneChoice::Auto)]
     plot_plane: PlotPlaneChoice,
+    /// What a frame without a pose (lost, unreadable, before
+    /// initialisation) gets in the trajectory file: `predict`, the last
+    /// tracked pose carried on at the last velocity for up to 1 s, then
+    /// held (KITTI-format files need a row per frame), or `omit`, no row,
+    /// as ORB-SLAM3's `SaveTrajectoryTUM` (TUM-format files only: EuRoC
+    /// and TUM RGB-D datasets). The evaluation covers the rows written.
+    #[arg(long, value_enum, default_value_t = LostRows::Predict)]
+    lost_rows: LostRows,
     /// Write the resident memory, the allocator's live and freed-but-held
     /// heap, whether a global BA is under way, and the atlas' size
     /// (keyframes, map points, maps) every --memory-every frames to this
@@ -257,6 +265,13 @@ enum ExtractorChoice {
 /// complete run, 2 for an incomplete one (its outputs written).
 pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     let source = Source::open(&args.dataset)?;
+    if args.lost_rows == LostRows::Omit && source.is_kitti() {
+        bail!(
+            "--lost-rows omit: {} is written as a KITTI-format trajectory, which needs one row per frame; \
+             use --lost-rows predict, or drop the rows of frames whose state is not Ok in report.json",
+            args.dataset
+        );
+    }
     let sensor = args.sensor.unwrap_or_else(|| source.default_sensor());
     let mut settings = match &args.settings {
         Some(path) => SlamSettings::from_file(path)?,
@@ -447,6 +462,7 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
         mapping: &mapping_mode(&args),
         wall_seconds: started.elapsed().as_secs_f64(),
         plot_plane: args.plot_plane,
+        lost_rows: args.lost_rows,
     };
     let mut problems = outputs.write(&slam, &end, &unreadable);
     if let Some(problem) = map_problem {

@@ -21,6 +21,7 @@ use super::frame_loop::{RunEnd, UnreadableFrame};
 use super::source::Source;
 use spslam::camera::Sensor;
 use spslam::eval::ScaleDrift;
+use spslam::tracking::TrackingState;
 
 /// Where and what to write, besides the system's state.
 pub struct RunOutputs<'a> {
@@ -45,6 +46,18 @@ pub struct RunOutputs<'a> {
     pub wall_seconds: f64,
     /// `--plot-plane`.
     pub plot_plane: PlotPlaneChoice,
+    /// `--lost-rows`.
+    pub lost_rows: LostRows,
+}
+
+/// What a frame without a pose gets in the trajectory file (`--lost-rows`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LostRows {
+    /// The last tracked pose carried on at the last velocity
+    /// (`spslam::system::GAP_HORIZON_S`), then held.
+    Predict,
+    /// No row (TUM-format trajectories only).
+    Omit,
 }
 
 /// report.json.
@@ -267,7 +280,9 @@ impl RunOutputs<'_> {
             Err(e) => problems.push(e),
         };
 
-        let trajectory = slam.trajectory().map(|p| to_trajectory(&p));
+        let trajectory = slam
+            .trajectory()
+            .map(|poses| to_trajectory(&self.rows_written(poses, slam.records())));
         let trajectory = match trajectory {
             Ok(t) => {
                 keep(self.write_trajectory(&t), &mut problems);
@@ -379,6 +394,20 @@ impl RunOutputs<'_> {
             println!("wrote {}", names.join(", "));
         }
         problems
+    }
+
+    /// The trajectory's rows as `--lost-rows` asks: every frame's, or the
+    /// tracked frames' only.
+    fn rows_written(&self, poses: Vec<(f64, Se3)>, records: &[FrameRecord]) -> Vec<(f64, Se3)> {
+        match self.lost_rows {
+            LostRows::Predict => poses,
+            LostRows::Omit => poses
+                .into_iter()
+                .zip(records)
+                .filter(|(_, r)| r.state == TrackingState::Ok)
+                .map(|(row, _)| row)
+                .collect(),
+        }
     }
 
     /// `trajectory_kitti.txt` (KITTI layout) or `trajectory_tum.txt` (EuRoC).
