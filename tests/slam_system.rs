@@ -15,7 +15,7 @@ use spslam::dataset::synthetic::SceneName;
 use spslam::features::GrayImage;
 use spslam::optim::{LieGroup, Se3};
 use spslam::system::GAP_HORIZON_S;
-use spslam::tracking::{TrackingState, RELOCALISATION_PATIENCE_S};
+use spslam::tracking::{TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S};
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -97,7 +97,7 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
 }
 
 #[test]
-fn frames_lost_to_a_blackout_carry_on_the_cameras_motion() {
+fn a_blackout_carries_on_the_cameras_motion_and_then_relocalises_in_the_same_map() {
     // Down a straight street at a steady speed, six black frames: tracking
     // loses them, and their rows are the last velocity carried on, not the
     // last pose held (which would put them behind by the distance driven).
@@ -122,6 +122,30 @@ fn frames_lost_to_a_blackout_carry_on_the_cameras_motion() {
     let truth = |k: usize| Se3::from_isometry(&sequence.pose(k));
     let last_tracked = black.start - 1;
     assert_eq!(records[last_tracked].state, TrackingState::Ok);
+    // The first frame with an image after the blackout tries the old map
+    // before a new one is started: it relocalises there, becomes a
+    // keyframe with its own stereo points, and every later frame is
+    // tracked in the one map (the frame after it had tracked 48 inliers,
+    // below the 50 a relocalisation needs, under ORB-SLAM3's one-second
+    // keyframe wait).
+    let after = black.end;
+    assert_eq!(
+        (
+            records[after].state,
+            records[after].method,
+            records[after].keyframe
+        ),
+        (TrackingState::Ok, TrackingMethod::Relocalisation, true)
+    );
+    for r in &records[after..] {
+        assert_eq!(
+            (r.state, r.map),
+            (TrackingState::Ok, 0),
+            "frame {}",
+            r.index
+        );
+    }
+    assert_eq!(slam.atlas().maps().len(), 1, "no second map");
     // The motion since the last tracked frame, estimated against true.
     let since = |poses: &dyn Fn(usize) -> Se3, k: usize| {
         poses(last_tracked).inverse().compose(&poses(k)).translation

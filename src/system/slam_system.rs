@@ -517,12 +517,18 @@ impl SlamSystem {
     ) -> Result<&FrameRecord, SlamError> {
         self.poll_mapping()?;
         self.map_due_keyframes(index)?;
-        if self.tracker.should_start_new_map(index) {
+        let new_map_due = self.tracker.should_start_new_map(index);
+        if new_map_due {
             self.start_new_map(index)?;
         }
         let (frame, stereo_ms) = self
             .builder
             .build_frame(index, timestamp, features, images, &self.rig)?;
+        // A loss that outlasted the patience on frames that could not
+        // relocalise (a blackout): this frame tries the old map first, and
+        // starts the new one itself if that fails.
+        let second_try =
+            (!new_map_due && self.tracker.patience_spent(index)).then(|| frame.clone());
         let stereo_points = frame.stereo_count();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),
@@ -533,10 +539,18 @@ impl SlamSystem {
             tracing::debug!(frame = index, queue, "local mapping busy");
         }
         let active = self.atlas.active();
-        let (map_index, map) = (active.index, active.map.clone());
+        let (mut map_index, mut map) = (active.index, active.map.clone());
         let loop_check_at_start = self.loop_check_running();
         let start = Instant::now();
-        let outcome = self.tracker.track(frame, &map, queue)?;
+        let mut outcome = self.tracker.track(frame, &map, queue)?;
+        if let Some(frame) = second_try {
+            if self.tracker.should_start_new_map(index) {
+                self.start_new_map(index)?;
+                let active = self.atlas.active();
+                (map_index, map) = (active.index, active.map.clone());
+                outcome = self.tracker.track(frame, &map, queue)?;
+            }
+        }
         let tracking_ms = start.elapsed().as_secs_f64() * 1e3;
         if outcome.interrupt_mapping {
             self.interrupt_mapping(index);

@@ -195,7 +195,14 @@ pub(crate) fn needs_keyframe(
 ) -> KeyFrameDecision {
     let n_keyframes = map.keyframe_count();
     if let Some(reloc) = ctx.last_relocalisation_frame {
-        if frame.index < reloc + ctx.max_frames && n_keyframes > ctx.max_frames {
+        // Stereo and RGB-D keyframes bring their own close points: a camera
+        // relocalised at the edge of the old map needs them at once.
+        let wait = if rig.sensor.has_depth() {
+            0
+        } else {
+            ctx.max_frames
+        };
+        if frame.index < reloc + wait && n_keyframes > ctx.max_frames {
             return KeyFrameDecision::default();
         }
     }

@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 
 use super::keyframe::{needs_keyframe, KeyFrameContext};
 use super::relocalise::relocalise_with;
+use crate::camera::{CameraRig, Sensor};
 use crate::optim::LieGroup;
 use crate::test_world::{pose_at, PointWorld};
 
@@ -173,14 +174,33 @@ fn keyframe_decision_follows_orb_slam3_stereo_rule() {
         needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
         "small map exempt"
     );
+    // A stereo (or RGB-D) keyframe brings its own close points, which a
+    // camera just relocalised at the old map's edge needs at once: it may
+    // be inserted. A monocular one waits `max_frames`, as in ORB-SLAM3.
     let ctx = KeyFrameContext {
         max_frames: 2,
         last_relocalisation_frame: Some(frame.index - 1),
         ..ctx
     };
     assert!(
-        !needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
-        "recently relocalised"
+        needs_keyframe(&frame, &map, &world.rig, &ctx).insert,
+        "recently relocalised, stereo"
+    );
+    let mono = CameraRig {
+        sensor: Sensor::Monocular,
+        ..world.rig
+    };
+    let long_ago = KeyFrameContext {
+        last_relocalisation_frame: None,
+        ..ctx
+    };
+    assert!(
+        needs_keyframe(&frame, &map, &mono, &long_ago).insert,
+        "monocular, no relocalisation"
+    );
+    assert!(
+        !needs_keyframe(&frame, &map, &mono, &ctx).insert,
+        "recently relocalised, monocular"
     );
 }
 

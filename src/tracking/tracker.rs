@@ -93,6 +93,9 @@ pub struct Tracker {
     last_relocalisation_frame: Option<usize>,
     /// Index of the first frame of the current loss.
     lost_since: Option<usize>,
+    /// Frames of the current loss on which relocalisation was tried with
+    /// enough keypoints to succeed (see [`Self::should_start_new_map`]).
+    relocalisation_tries: usize,
     max_frames: usize,
     /// Where relocalisation's keyframes come from; `None`: the newest ones.
     relocalisation_candidates: Option<Arc<dyn RelocalisationCandidates>>,
@@ -172,6 +175,7 @@ impl Tracker {
             last_keyframe_frame: 0,
             last_relocalisation_frame: None,
             lost_since: None,
+            relocalisation_tries: 0,
             max_frames: rig.fps.round().max(1.0) as usize,
             relocalisation_candidates: None,
             localisation_only: false,
@@ -315,13 +319,18 @@ impl Tracker {
             .is_some_and(|r| frame.index < r + self.max_frames);
         let (mut method, doubtful, rejected) = if self.state == TrackingState::Ok {
             self.track_frame_to_frame(&mut frame, map)?
-        } else if relocalise_with(
-            &mut frame,
-            map,
-            &self.rig,
-            self.relocalisation_candidates.as_deref(),
-            self.reference,
-        )? {
+        } else if {
+            if frame.len() >= MIN_RELOCALISATION_INLIERS {
+                self.relocalisation_tries += 1;
+            }
+            relocalise_with(
+                &mut frame,
+                map,
+                &self.rig,
+                self.relocalisation_candidates.as_deref(),
+                self.reference,
+            )?
+        } {
             self.last_relocalisation_frame = Some(frame.index);
             (TrackingMethod::Relocalisation, false, None)
         } else {
@@ -383,7 +392,10 @@ impl Tracker {
         }
         if self.state != TrackingState::Ok {
             self.velocity = None;
-            self.lost_since.get_or_insert(frame.index);
+            if self.lost_since.is_none() {
+                self.lost_since = Some(frame.index);
+                self.relocalisation_tries = 0;
+            }
             let outcome = TrackOutcome {
                 state: self.state,
                 method: TrackingMethod::None,
@@ -454,8 +466,22 @@ impl Tracker {
     }
 
     /// Whether relocalisation has failed long enough that tracking should
-    /// start a new map (see [`RELOCALISATION_PATIENCE_S`]) at frame `index`.
+    /// start a new map (see [`RELOCALISATION_PATIENCE_S`]) at frame `index`:
+    /// the patience has run out, and relocalisation has been tried on at
+    /// least one frame of the loss with keypoints enough to succeed
+    /// ([`MIN_RELOCALISATION_INLIERS`]). Frames that cannot relocalise
+    /// (black, blank, unreadable) are no evidence that the old map is out
+    /// of reach, so after a blackout the first frame with an image tries
+    /// the old map before a new one is started from it.
     pub fn should_start_new_map(&self, index: usize) -> bool {
+        self.relocalisation_tries > 0 && self.patience_spent(index)
+    }
+
+    /// Whether the loss has outlasted the patience at frame `index`
+    /// (whatever the frames were): with no relocalisation tried yet, the
+    /// caller lets frame `index` try one and, when it fails, starts the new
+    /// map from that same frame (see [`Self::should_start_new_map`]).
+    pub fn patience_spent(&self, index: usize) -> bool {
         !self.localisation_only
             && self.state == TrackingState::Lost
             && self
