@@ -319,18 +319,7 @@ impl Tracker {
             .is_some_and(|r| frame.index < r + self.max_frames);
         let (mut method, doubtful, rejected) = if self.state == TrackingState::Ok {
             self.track_frame_to_frame(&mut frame, map)?
-        } else if {
-            if frame.len() >= MIN_RELOCALISATION_INLIERS {
-                self.relocalisation_tries += 1;
-            }
-            relocalise_with(
-                &mut frame,
-                map,
-                &self.rig,
-                self.relocalisation_candidates.as_deref(),
-                self.reference,
-            )?
-        } {
+        } else if self.relocalise(&mut frame, map)? {
             self.last_relocalisation_frame = Some(frame.index);
             (TrackingMethod::Relocalisation, false, None)
         } else {
@@ -463,6 +452,22 @@ impl Tracker {
             interrupt_mapping: false,
         };
         Ok((Some(frame), outcome, wants_keyframe))
+    }
+
+    /// Tries to relocalise a lost frame in `map`, counting the try when the
+    /// frame has keypoints enough to succeed (see
+    /// [`Self::should_start_new_map`]).
+    fn relocalise(&mut self, frame: &mut Frame, map: &Map) -> Result<bool, SlamError> {
+        if frame.len() >= MIN_RELOCALISATION_INLIERS {
+            self.relocalisation_tries += 1;
+        }
+        relocalise_with(
+            frame,
+            map,
+            &self.rig,
+            self.relocalisation_candidates.as_deref(),
+            self.reference,
+        )
     }
 
     /// Whether relocalisation has failed long enough that tracking should
