@@ -195,8 +195,11 @@ pub(crate) fn needs_keyframe(
 ) -> KeyFrameDecision {
     let n_keyframes = map.keyframe_count();
     if let Some(reloc) = ctx.last_relocalisation_frame {
-        // Stereo and RGB-D keyframes bring their own close points: a camera
-        // relocalised at the edge of the old map needs them at once.
+        // ORB-SLAM3's `NeedNewKeyFrame` inserts none within `mMaxFrames`
+        // of a relocalisation. Stereo and RGB-D keyframes bring their own
+        // close points, which a camera relocalised at the edge of the old
+        // map needs at once (EVALUATION.md, "Relocalising in the old map
+        // first after a blackout"); a monocular one keeps the wait.
         let wait = if rig.sensor.has_depth() {
             0
         } else {
