@@ -93,9 +93,9 @@ pub struct Tracker {
     last_relocalisation_frame: Option<usize>,
     /// Index of the first frame of the current loss.
     lost_since: Option<usize>,
-    /// Frames of the current loss on which relocalisation was tried with
-    /// enough keypoints to succeed (see [`Self::should_start_new_map`]).
-    relocalisation_tries: usize,
+    /// Whether relocalisation was tried during the current loss on a frame
+    /// with keypoints enough to succeed (see [`Self::should_start_new_map`]).
+    relocalisation_tried: bool,
     max_frames: usize,
     /// Where relocalisation's keyframes come from; `None`: the newest ones.
     relocalisation_candidates: Option<Arc<dyn RelocalisationCandidates>>,
@@ -175,7 +175,7 @@ impl Tracker {
             last_keyframe_frame: 0,
             last_relocalisation_frame: None,
             lost_since: None,
-            relocalisation_tries: 0,
+            relocalisation_tried: false,
             max_frames: rig.fps.round().max(1.0) as usize,
             relocalisation_candidates: None,
             localisation_only: false,
@@ -383,7 +383,7 @@ impl Tracker {
             self.velocity = None;
             if self.lost_since.is_none() {
                 self.lost_since = Some(frame.index);
-                self.relocalisation_tries = 0;
+                self.relocalisation_tried = false;
             }
             let outcome = TrackOutcome {
                 state: self.state,
@@ -458,9 +458,7 @@ impl Tracker {
     /// frame has keypoints enough to succeed (see
     /// [`Self::should_start_new_map`]).
     fn relocalise(&mut self, frame: &mut Frame, map: &Map) -> Result<bool, SlamError> {
-        if frame.len() >= MIN_RELOCALISATION_INLIERS {
-            self.relocalisation_tries += 1;
-        }
+        self.relocalisation_tried |= frame.len() >= MIN_RELOCALISATION_INLIERS;
         relocalise_with(
             frame,
             map,
@@ -479,7 +477,7 @@ impl Tracker {
     /// of reach, so after a blackout the first frame with an image tries
     /// the old map before a new one is started from it.
     pub fn should_start_new_map(&self, index: usize) -> bool {
-        self.relocalisation_tries > 0 && self.patience_spent(index)
+        self.relocalisation_tried && self.patience_spent(index)
     }
 
     /// Whether the loss has outlasted the patience at frame `index`
