@@ -7,6 +7,9 @@ use crate::map::{FrameMeasurements, KeyFrame, KeyFrameId, MapPointId, StereoMeas
 use crate::matching::KeypointGrid;
 use crate::optim::{LieGroup, Se3};
 
+use std::sync::Arc;
+
+use super::image_rotation::SmallBlurryImage;
 use crate::camera::CameraRig;
 
 /// One stereo frame being tracked.
@@ -38,6 +41,10 @@ pub struct Frame {
     /// The thresholds its descriptors are matched with (the extractor's;
     /// the kind's default until the front end sets them).
     pub distance_thresholds: DistanceThresholds,
+    /// The image shrunk and blurred, for the rotation between frames when
+    /// a turn outruns the motion model (`None` for a frame built without
+    /// its image, or a flat one).
+    pub thumbnail: Option<Arc<SmallBlurryImage>>,
 }
 
 impl Frame {
@@ -83,6 +90,7 @@ impl Frame {
             reference_keyframe: None,
             descriptor_cell: None,
             distance_thresholds,
+            thumbnail: None,
         }
     }
 
@@ -108,6 +116,7 @@ impl Frame {
             // Loop verification searches without a ratio test.
             descriptor_cell: None,
             distance_thresholds: m.distance_thresholds,
+            thumbnail: None,
         }
     }
 

@@ -3,6 +3,7 @@
 //! rows, the depth image (RGB-D), or none (monocular); the optional depth
 //! filter.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use crate::camera::{CameraRig, DepthImage, Sensor};
@@ -14,6 +15,7 @@ use crate::matching::{
 };
 
 use super::frame::Frame;
+use super::image_rotation::SmallBlurryImage;
 use crate::error::{MapContext, SlamError};
 
 /// The images of one frame, by sensor.
@@ -307,6 +309,7 @@ impl FrameBuilder {
         );
         frame.descriptor_cell = self.descriptor_cell;
         frame.distance_thresholds = self.distance_thresholds;
+        frame.thumbnail = SmallBlurryImage::new(images.left(), &rig.camera).map(Arc::new);
         Ok((frame, start.elapsed().as_secs_f64() * 1e3))
     }
 }

@@ -22,6 +22,7 @@
 
 mod frame;
 mod frontend;
+mod image_rotation;
 mod keyframe;
 mod local_map;
 mod mono_init;
@@ -32,6 +33,7 @@ mod search;
 mod tracker;
 
 pub use frame::Frame;
+pub use image_rotation::{estimate_rotation, ImageRotation, SmallBlurryImage};
 pub use frontend::{Extractors, FrameBuilder, Frontend, SensorFeatures, SensorImages};
 pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use mono_init::{MIN_MONO_INIT_KEYPOINTS, MIN_MONO_INIT_MATCHES};

@@ -5,6 +5,7 @@ use crate::map::{KeyFrameId, Map, MapPointId};
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
+use super::image_rotation::estimate_rotation;
 use super::pose::refine_pose;
 use super::relocalise::{pnp_ransac, PNP_RANSAC_ITERATIONS};
 use super::search::{
@@ -116,6 +117,42 @@ pub(crate) fn track_with_motion_model(
     let inliers = refine_pose(frame, map, rig)?;
     tracing::debug!(frame = frame.index, matches, inliers, "motion model");
     Ok(Some(MotionModelFit { matches, inliers }))
+}
+
+/// Rotations closer than this to the motion model's are not tried again.
+const SAME_ROTATION_DEG: f64 = 0.25;
+
+/// The motion model's velocity with its rotation replaced by the one
+/// measured between the last frame's thumbnail and this frame's
+/// ([`estimate_rotation`], PTAM's small blurry images): the camera centre
+/// still moves as the velocity says (not at all without one). `None`
+/// without both thumbnails, when the images give no rotation, or when it
+/// is the velocity's own (within 0.25°), which the motion model has tried.
+pub(crate) fn image_rotation_velocity(
+    frame: &Frame,
+    last: &Frame,
+    velocity: Option<&Se3>,
+) -> Option<Se3> {
+    let (Some(current), Some(previous)) = (frame.thumbnail.as_deref(), last.thumbnail.as_deref())
+    else {
+        return None;
+    };
+    let velocity = velocity.copied().unwrap_or_else(Se3::identity);
+    let found = estimate_rotation(previous, current, &velocity.rotation)?;
+    let change = (velocity.rotation.inverse() * found.rotation).angle().to_degrees();
+    tracing::debug!(
+        frame = frame.index,
+        change_deg = change,
+        rms = found.rms,
+        overlap = found.overlap,
+        "rotation from the images"
+    );
+    if change < SAME_ROTATION_DEG {
+        return None;
+    }
+    // The camera centre in the last frame's coordinates: c = −Rᵀ·t.
+    let centre = -(velocity.rotation.inverse() * velocity.translation);
+    Some(Se3::new(found.rotation, -(found.rotation * centre)))
 }
 
 /// ORB-SLAM3's `TrackReferenceKeyFrame`, with descriptor matching (ratio

@@ -15,8 +15,8 @@ use super::keyframe::{
 use super::local_map::track_local_map;
 use super::mono_init::MonoInitialiser;
 use super::motion::{
-    track_last_frame, track_last_frame_unratioed, track_reference_keyframe,
-    track_with_motion_model, MIN_POSE_INLIERS,
+    image_rotation_velocity, track_last_frame, track_last_frame_unratioed,
+    track_reference_keyframe, track_with_motion_model, MotionModelFit, MIN_POSE_INLIERS,
 };
 use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
 use crate::camera::{CameraRig, Sensor};
@@ -40,6 +40,9 @@ pub enum TrackingMethod {
     Initialisation,
     /// Constant-velocity motion model.
     MotionModel,
+    /// The motion model with the rotation measured from the whole images
+    /// (a turn the constant velocity missed).
+    ImageRotation,
     /// Descriptor matching against the reference keyframe.
     ReferenceKeyFrame,
     /// Descriptor matching against the last frame (where the motion model
@@ -119,6 +122,8 @@ pub struct Tracker {
 struct RejectedPrediction {
     pose_cw: Se3,
     map_points: Vec<Option<MapPointId>>,
+    /// Its inliers after refinement.
+    inliers: usize,
 }
 
 /// Where frame-to-frame tracking starts again when its first start left
@@ -129,6 +134,8 @@ enum Start {
     ReferenceKeyFrame,
     /// Descriptor matching against the last frame.
     LastFrame,
+    /// The motion model with the rotation measured from the images.
+    ImageRotation,
     /// The motion model's rejected pose and matches.
     RejectedPrediction(RejectedPrediction),
     /// Mutual nearest neighbours against the last frame, no ratio test.
@@ -141,6 +148,7 @@ impl Start {
         match self {
             Start::ReferenceKeyFrame => TrackingMethod::ReferenceKeyFrame,
             Start::LastFrame => TrackingMethod::LastFrame,
+            Start::ImageRotation => TrackingMethod::ImageRotation,
             Start::RejectedPrediction(_) => TrackingMethod::MotionModel,
             Start::MutualNearestNeighbours => TrackingMethod::MutualNearestNeighbours,
         }
@@ -350,7 +358,7 @@ impl Tracker {
                 // view closest to this one, then the motion model's pose
                 // that failed its quarter rule, and then the last frame's
                 // points without the ratio test, before giving up.
-                let mut alternatives = vec![Start::LastFrame];
+                let mut alternatives = vec![Start::ImageRotation, Start::LastFrame];
                 alternatives.extend(rejected.map(Start::RejectedPrediction));
                 alternatives.push(Start::MutualNearestNeighbours);
                 for alternative in alternatives {
@@ -582,6 +590,10 @@ impl Tracker {
         let tracked = match alternative {
             Start::ReferenceKeyFrame => self.track_reference(frame, map)?,
             Start::LastFrame => self.track_last(frame, map)?,
+            // As for the rejected prediction, local-map tracking decides.
+            Start::ImageRotation => self
+                .track_image_rotation(frame, map)?
+                .is_some_and(|fit| fit.inliers >= MIN_POSE_INLIERS),
             Start::MutualNearestNeighbours => self.track_last_unratioed(frame, map)?,
             Start::RejectedPrediction(start) => {
                 (frame.pose_cw, frame.map_points) = (start.pose_cw, start.map_points.clone());
@@ -607,6 +619,23 @@ impl Tracker {
         Ok(None)
     }
 
+    /// The motion model's search around the rotation measured from the
+    /// last frame's and this frame's images
+    /// ([`image_rotation_velocity`]); `None` when there is none to try.
+    fn track_image_rotation(
+        &self,
+        frame: &mut Frame,
+        map: &Map,
+    ) -> Result<Option<MotionModelFit>, SlamError> {
+        let Some(last) = self.last_frame.as_ref() else {
+            return Ok(None);
+        };
+        let Some(velocity) = image_rotation_velocity(frame, last, self.velocity.as_ref()) else {
+            return Ok(None);
+        };
+        track_with_motion_model(frame, last, &velocity, map, &self.rig)
+    }
+
     /// Tracks the last frame's points by descriptor, from its pose.
     fn track_last(&self, frame: &mut Frame, map: &Map) -> Result<bool, SlamError> {
         let Some(last) = self.last_frame.as_ref() else {
@@ -624,7 +653,8 @@ impl Tracker {
         track_last_frame_unratioed(frame, last, map, &self.rig)
     }
 
-    /// Motion model when there is a velocity, else (or when it fails) the
+    /// Motion model when there is a velocity, then (when it fails) the
+    /// motion model with the rotation measured from the images, else the
     /// reference keyframe, else the last frame, else the motion model's
     /// pose that failed only its quarter rule. With the method: whether the
     /// motion model's fit is doubtful, and that rejected pose when the
@@ -647,8 +677,31 @@ impl Tracker {
                     rejected = Some(RejectedPrediction {
                         pose_cw: frame.pose_cw,
                         map_points: frame.map_points.clone(),
+                        inliers: fit.inliers,
                     });
                 }
+            }
+        }
+        // A turn the constant velocity missed: the same search around the
+        // rotation the images show (without a velocity, as just after a
+        // relocalisation, the reference keyframe comes first).
+        let image_fit = match self.velocity {
+            Some(_) => self.track_image_rotation(frame, map)?,
+            None => None,
+        };
+        if let Some(fit) = image_fit {
+            if fit.is_accepted() {
+                return Ok((TrackingMethod::ImageRotation, fit.is_doubtful(), rejected));
+            }
+            // Of the two predictions that failed only their quarter rule,
+            // local-map tracking may try the one with more inliers.
+            if fit.inliers >= MIN_POSE_INLIERS.max(rejected.as_ref().map_or(0, |r| r.inliers + 1))
+            {
+                rejected = Some(RejectedPrediction {
+                    pose_cw: frame.pose_cw,
+                    map_points: frame.map_points.clone(),
+                    inliers: fit.inliers,
+                });
             }
         }
         if self.track_reference(frame, map)? {
