@@ -1,5 +1,6 @@
 //! What the system reports per frame, per map and for a whole run.
 
+use nalgebra::UnitQuaternion;
 use serde::Serialize;
 
 use crate::map::{KeyFrameId, Map};
@@ -74,6 +75,13 @@ pub struct FrameRecord {
     /// The pose when tracked.
     #[serde(skip)]
     pub relative_pose: Option<RelativePose>,
+    /// For a frame tracking gave no pose, or the first of a new map: the
+    /// rotation `R_cp` from the previous input frame, measured from the
+    /// two frames' thumbnails (the trajectory's rows over a gap turn by it).
+    #[serde(skip)]
+    pub gap_rotation: Option<UnitQuaternion<f64>>,
+    /// That rotation's angle, degrees.
+    pub gap_rotation_deg: Option<f64>,
     /// Time per stage.
     pub timings: FrameTimings,
     /// Local mapping's summary when it ran.

@@ -21,6 +21,7 @@ use crate::tracking::{
 };
 
 use super::atlas::{Atlas, MapIndex};
+use super::gap_motion::GapRotations;
 use super::global_ba_thread::{GlobalBaHook, GlobalBaThread};
 use super::lagged_mapping::{LaggedJob, LaggedMapping, LaggedStep};
 use super::local_mapping_thread::{MappingJob, MappingResult, MappingThread, StoppedMapping};
@@ -81,6 +82,8 @@ pub struct SlamSystem {
     mapping_lag: Option<LaggedMapping>,
     pub(super) atlas: Atlas,
     pub(super) records: Vec<FrameRecord>,
+    /// Rotations between consecutive frames measured over tracking gaps.
+    gap_rotations: GapRotations,
     pub(super) loop_closing: Option<LoopClosing>,
     /// Keyframes processed by local mapping, not yet given to loop closing.
     pub(super) loop_inbox: Vec<KeyFrameId>,
@@ -103,6 +106,7 @@ impl SlamSystem {
             mapping_lag: None,
             atlas: Atlas::new(),
             records: Vec::new(),
+            gap_rotations: GapRotations::default(),
             loop_closing: None,
             loop_inbox: Vec::new(),
             loop_log: LoopLog::default(),
@@ -485,6 +489,7 @@ impl SlamSystem {
             TrackingState::NotInitialised => TrackingState::NotInitialised,
             _ => TrackingState::Lost,
         };
+        self.gap_rotations.next(None, false);
         self.records.push(FrameRecord {
             index,
             timestamp,
@@ -496,6 +501,8 @@ impl SlamSystem {
             keyframe: false,
             unreadable: Some(reason),
             relative_pose: None,
+            gap_rotation: None,
+            gap_rotation_deg: None,
             timings: FrameTimings::default(),
             mapping: None,
             loop_check_running: false,
@@ -530,6 +537,7 @@ impl SlamSystem {
         let second_try =
             (!new_map_due && self.tracker.patience_spent(index)).then(|| frame.clone());
         let stereo_points = frame.stereo_count();
+        let thumbnail = frame.thumbnail.clone();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),
             Mapping::Paused { stopped, .. } => stopped.unprocessed.len(),
@@ -590,6 +598,9 @@ impl SlamSystem {
             self.record_earlier_keyframe(earlier, map_index, kf);
         }
         let mapping_ms = mapping.as_ref().map_or(0.0, |m| m.elapsed_ms);
+        let untracked =
+            outcome.relative_pose.is_none() || outcome.method == TrackingMethod::Initialisation;
+        let gap_rotation = self.gap_rotations.next(thumbnail, untracked);
         self.records.push(FrameRecord {
             index,
             timestamp,
@@ -605,6 +616,8 @@ impl SlamSystem {
                 keyframe,
                 pose,
             }),
+            gap_rotation,
+            gap_rotation_deg: gap_rotation.map(|r| r.angle().to_degrees()),
             timings: FrameTimings {
                 extraction_ms,
                 stereo_ms,

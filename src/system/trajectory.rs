@@ -24,8 +24,9 @@ impl SlamSystem {
     ///
     /// A frame without a pose (before initialisation, lost, unreadable)
     /// gets the last tracked pose carried on at the last velocity for up
-    /// to [`super::GAP_HORIZON_S`] (identity before the first tracked frame; see
-    /// [`super::gap_motion`]). The world is the first map's frame; a later
+    /// to [`super::GAP_HORIZON_S`], turned by the rotation its images
+    /// measured from the frame before where they did (identity before the
+    /// first tracked frame; see [`super::gap_motion`]). The world is the first map's frame; a later
     /// map is anchored so that its first tracked frame sits where the last
     /// map's motion, carried over the gap the same way, puts it (see
     /// [`MapSummary::anchored_at_frame`]): the motion during the gap is
@@ -115,7 +116,9 @@ impl SlamSystem {
                         if rel.map > 0 {
                             anchored = Some((rel.map, previous_frame.unwrap_or(record.index)));
                         }
-                        motion.predict(record.timestamp).compose(&in_map.inverse())
+                        motion
+                            .coast(record.timestamp, record.gap_rotation)
+                            .compose(&in_map.inverse())
                     });
                     let world_pose = anchor.compose(&in_map);
                     motion.tracked(record.timestamp, world_pose);
@@ -123,7 +126,7 @@ impl SlamSystem {
                     pose = Some(world_pose);
                 }
             }
-            let pose = pose.unwrap_or_else(|| motion.predict(record.timestamp));
+            let pose = pose.unwrap_or_else(|| motion.coast(record.timestamp, record.gap_rotation));
             out.push((record.timestamp, pose, anchored));
         }
         Ok(out)

@@ -33,8 +33,8 @@ mod search;
 mod tracker;
 
 pub use frame::Frame;
-pub use image_rotation::{estimate_rotation, ImageRotation, SmallBlurryImage};
 pub use frontend::{Extractors, FrameBuilder, Frontend, SensorFeatures, SensorImages};
+pub use image_rotation::{estimate_rotation, ImageRotation, SmallBlurryImage};
 pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
 pub use mono_init::{MIN_MONO_INIT_KEYPOINTS, MIN_MONO_INIT_MATCHES};
 pub use motion::MOTION_MODEL_RADIUS;

@@ -139,7 +139,9 @@ pub(crate) fn image_rotation_velocity(
     };
     let velocity = velocity.copied().unwrap_or_else(Se3::identity);
     let found = estimate_rotation(previous, current, &velocity.rotation)?;
-    let change = (velocity.rotation.inverse() * found.rotation).angle().to_degrees();
+    let change = (velocity.rotation.inverse() * found.rotation)
+        .angle()
+        .to_degrees();
     tracing::debug!(
         frame = frame.index,
         change_deg = change,

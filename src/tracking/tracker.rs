@@ -124,6 +124,8 @@ struct RejectedPrediction {
     map_points: Vec<Option<MapPointId>>,
     /// Its inliers after refinement.
     inliers: usize,
+    /// Whether its rotation came from the images.
+    from_images: bool,
 }
 
 /// Where frame-to-frame tracking starts again when its first start left
@@ -149,6 +151,7 @@ impl Start {
             Start::ReferenceKeyFrame => TrackingMethod::ReferenceKeyFrame,
             Start::LastFrame => TrackingMethod::LastFrame,
             Start::ImageRotation => TrackingMethod::ImageRotation,
+            Start::RejectedPrediction(start) if start.from_images => TrackingMethod::ImageRotation,
             Start::RejectedPrediction(_) => TrackingMethod::MotionModel,
             Start::MutualNearestNeighbours => TrackingMethod::MutualNearestNeighbours,
         }
@@ -335,17 +338,31 @@ impl Tracker {
         };
         let mut inliers = 0;
         if method != TrackingMethod::None {
-            let needed = if recently_relocalised || method == TrackingMethod::Relocalisation {
-                MIN_RELOCALISATION_INLIERS
-            } else {
-                MIN_LOCAL_MAP_INLIERS
+            // A pose found away from the motion model's prediction (by a
+            // relocalisation, or around the rotation the images show) needs
+            // the inliers of a relocalisation, as do the frames just after
+            // one: ORB-SLAM3's 50 in `TrackLocalMap`.
+            let needed_for = |method: TrackingMethod| {
+                let recovered = matches!(
+                    method,
+                    TrackingMethod::Relocalisation | TrackingMethod::ImageRotation
+                );
+                if recently_relocalised || recovered {
+                    MIN_RELOCALISATION_INLIERS
+                } else {
+                    MIN_LOCAL_MAP_INLIERS
+                }
             };
             inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
-            if method == TrackingMethod::MotionModel && (inliers < needed || doubtful) {
+            let weak_prediction =
+                method == TrackingMethod::MotionModel && (inliers < needed_for(method) || doubtful);
+            if weak_prediction || method == TrackingMethod::ImageRotation {
                 // The prediction passed its own test but led the local map
                 // astray, or kept fewer than half its matches (a turn
-                // starting or ending): try the reference keyframe too and
-                // keep the pose with more local-map inliers.
+                // starting or ending), or it came from the images' rotation
+                // after the motion model failed (its centre still carried
+                // straight on): try the reference keyframe too and keep the
+                // pose with more local-map inliers.
                 let alternative = Start::ReferenceKeyFrame;
                 if let Some(better) =
                     self.try_instead(&mut frame, map, &alternative, inliers, recently_relocalised)?
@@ -353,7 +370,7 @@ impl Tracker {
                     (method, inliers) = (alternative.method(), better);
                 }
             }
-            if inliers < needed && method != TrackingMethod::Relocalisation {
+            if inliers < needed_for(method) && method != TrackingMethod::Relocalisation {
                 // Tracking would be lost: try the last frame's points, the
                 // view closest to this one, then the motion model's pose
                 // that failed its quarter rule, and then the last frame's
@@ -362,7 +379,7 @@ impl Tracker {
                 alternatives.extend(rejected.map(Start::RejectedPrediction));
                 alternatives.push(Start::MutualNearestNeighbours);
                 for alternative in alternatives {
-                    if inliers >= needed || method == alternative.method() {
+                    if inliers >= needed_for(method) || method == alternative.method() {
                         continue;
                     }
                     if let Some(better) = self.try_instead(
@@ -376,6 +393,7 @@ impl Tracker {
                     }
                 }
             }
+            let needed = needed_for(method);
             if inliers < needed {
                 tracing::debug!(frame = frame.index, inliers, "local map tracking failed");
             }
@@ -678,6 +696,7 @@ impl Tracker {
                         pose_cw: frame.pose_cw,
                         map_points: frame.map_points.clone(),
                         inliers: fit.inliers,
+                        from_images: false,
                     });
                 }
             }
@@ -695,12 +714,12 @@ impl Tracker {
             }
             // Of the two predictions that failed only their quarter rule,
             // local-map tracking may try the one with more inliers.
-            if fit.inliers >= MIN_POSE_INLIERS.max(rejected.as_ref().map_or(0, |r| r.inliers + 1))
-            {
+            if fit.inliers >= MIN_POSE_INLIERS.max(rejected.as_ref().map_or(0, |r| r.inliers + 1)) {
                 rejected = Some(RejectedPrediction {
                     pose_cw: frame.pose_cw,
                     map_points: frame.map_points.clone(),
                     inliers: fit.inliers,
+                    from_images: true,
                 });
             }
         }
@@ -711,8 +730,9 @@ impl Tracker {
             return Ok((TrackingMethod::LastFrame, false, rejected));
         }
         if let Some(start) = rejected {
+            let method = Start::RejectedPrediction(start.clone()).method();
             (frame.pose_cw, frame.map_points) = (start.pose_cw, start.map_points);
-            return Ok((TrackingMethod::MotionModel, false, None));
+            return Ok((method, false, None));
         }
         if self.track_last_unratioed(frame, map)? {
             return Ok((TrackingMethod::MutualNearestNeighbours, false, None));
