@@ -8,6 +8,10 @@
 //!   monocular two-view reconstruction), the constant-velocity motion
 //!   model, the reference keyframe and relocalisation as fallbacks, local
 //!   map tracking, ORB-SLAM3's keyframe decision and insertion;
+//! - [`SmallBlurryImage`] and [`estimate_rotation`]: the rotation between
+//!   two frames from their whole images (PTAM's small blurry images), the
+//!   motion model's second start in a turn it missed, and the turn of a
+//!   tracking gap's rows ([`crate::system`]);
 //!
 //! The driver that runs tracking with local mapping over an atlas of maps
 //! is [`crate::system::SlamSystem`]; tracking imports nothing from it.

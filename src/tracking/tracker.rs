@@ -128,6 +128,29 @@ struct RejectedPrediction {
     from_images: bool,
 }
 
+/// A local-map tracking result against the inliers its start needs:
+/// one that has them beats one that has not, then more inliers win.
+#[derive(Debug, Clone, Copy)]
+struct LocalMapScore {
+    inliers: usize,
+    needed: usize,
+}
+
+impl LocalMapScore {
+    fn new(inliers: usize, needed: usize) -> Self {
+        Self { inliers, needed }
+    }
+
+    fn key(&self) -> (bool, usize) {
+        (self.inliers >= self.needed, self.inliers)
+    }
+
+    /// Whether this result is the better one.
+    fn beats(&self, other: &Self) -> bool {
+        self.key() > other.key()
+    }
+}
+
 /// Where frame-to-frame tracking starts again when its first start left
 /// too few local-map inliers.
 #[derive(Debug, Clone)]
@@ -364,9 +387,16 @@ impl Tracker {
                 // straight on): try the reference keyframe too and keep the
                 // pose with more local-map inliers.
                 let alternative = Start::ReferenceKeyFrame;
-                if let Some(better) =
-                    self.try_instead(&mut frame, map, &alternative, inliers, recently_relocalised)?
-                {
+                let current = LocalMapScore::new(inliers, needed_for(method));
+                let needed = needed_for(alternative.method());
+                if let Some(better) = self.try_instead(
+                    &mut frame,
+                    map,
+                    &alternative,
+                    current,
+                    needed,
+                    recently_relocalised,
+                )? {
                     (method, inliers) = (alternative.method(), better);
                 }
             }
@@ -382,11 +412,14 @@ impl Tracker {
                     if inliers >= needed_for(method) || method == alternative.method() {
                         continue;
                     }
+                    let current = LocalMapScore::new(inliers, needed_for(method));
+                    let needed = needed_for(alternative.method());
                     if let Some(better) = self.try_instead(
                         &mut frame,
                         map,
                         &alternative,
-                        inliers,
+                        current,
+                        needed,
                         recently_relocalised,
                     )? {
                         (method, inliers) = (alternative.method(), better);
@@ -590,16 +623,20 @@ impl Tracker {
 
     /// Tracks `frame` again by `alternative` (the reference keyframe or
     /// the last frame) and its local map; keeps that pose and its
-    /// matches, returning their local-map inliers, when they are more
-    /// than `inliers`, else restores the frame as it was.
+    /// matches, returning their local-map inliers, when they score better
+    /// than the current pose's ([`LocalMapScore`]: a pose with the inliers
+    /// its start needs beats one without, then more inliers win), else
+    /// restores the frame as it was.
     fn try_instead(
         &self,
         frame: &mut Frame,
         map: &Map,
         alternative: &Start,
-        inliers: usize,
+        current: LocalMapScore,
+        needed: usize,
         recently_relocalised: bool,
     ) -> Result<Option<usize>, SlamError> {
+        let inliers = current.inliers;
         let kept = (
             frame.pose_cw,
             frame.map_points.clone(),
@@ -630,7 +667,7 @@ impl Tracker {
             alternative_inliers = found,
             "too few or doubtful local-map inliers: another start tried"
         );
-        if found > inliers {
+        if LocalMapScore::new(found, needed).beats(&current) {
             return Ok(Some(found));
         }
         (frame.pose_cw, frame.map_points, frame.reference_keyframe) = kept;
