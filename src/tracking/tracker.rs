@@ -377,15 +377,11 @@ impl Tracker {
                 }
             };
             inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
-            let weak_prediction =
-                method == TrackingMethod::MotionModel && (inliers < needed_for(method) || doubtful);
-            if weak_prediction || method == TrackingMethod::ImageRotation {
+            if method == TrackingMethod::MotionModel && (inliers < needed_for(method) || doubtful) {
                 // The prediction passed its own test but led the local map
                 // astray, or kept fewer than half its matches (a turn
-                // starting or ending), or it came from the images' rotation
-                // after the motion model failed (its centre still carried
-                // straight on): try the reference keyframe too and keep the
-                // pose with more local-map inliers.
+                // starting or ending): try the reference keyframe too and
+                // keep the pose with more local-map inliers.
                 let alternative = Start::ReferenceKeyFrame;
                 let current = LocalMapScore::new(inliers, needed_for(method));
                 let needed = needed_for(alternative.method());
@@ -402,10 +398,11 @@ impl Tracker {
             }
             if inliers < needed_for(method) && method != TrackingMethod::Relocalisation {
                 // Tracking would be lost: try the last frame's points, the
-                // view closest to this one, then the motion model's pose
+                // view closest to this one, then the motion model's search
+                // around the images' rotation, then the motion model's pose
                 // that failed its quarter rule, and then the last frame's
                 // points without the ratio test, before giving up.
-                let mut alternatives = vec![Start::ImageRotation, Start::LastFrame];
+                let mut alternatives = vec![Start::LastFrame, Start::ImageRotation];
                 alternatives.extend(rejected.map(Start::RejectedPrediction));
                 alternatives.push(Start::MutualNearestNeighbours);
                 for alternative in alternatives {
@@ -708,9 +705,9 @@ impl Tracker {
         track_last_frame_unratioed(frame, last, map, &self.rig)
     }
 
-    /// Motion model when there is a velocity, then (when it fails) the
-    /// motion model with the rotation measured from the images, else the
-    /// reference keyframe, else the last frame, else the motion model's
+    /// Motion model when there is a velocity, else (or when it fails) the
+    /// reference keyframe, else the last frame, else the motion model with
+    /// the rotation measured from the images, else the last frame, else the motion model's
     /// pose that failed only its quarter rule. With the method: whether the
     /// motion model's fit is doubtful, and that rejected pose when the
     /// method is another one (local-map tracking may still try it).
@@ -738,9 +735,16 @@ impl Tracker {
                 }
             }
         }
-        // A turn the constant velocity missed: the same search around the
-        // rotation the images show (without a velocity, as just after a
-        // relocalisation, the reference keyframe comes first).
+        if self.track_reference(frame, map)? {
+            return Ok((TrackingMethod::ReferenceKeyFrame, false, rejected));
+        }
+        if self.track_last(frame, map)? {
+            return Ok((TrackingMethod::LastFrame, false, rejected));
+        }
+        // A turn the constant velocity missed, where descriptor matching
+        // failed too (motion blur, a repeated texture): the motion model's
+        // search again around the rotation the images show (not without
+        // a velocity, as just after a relocalisation).
         let image_fit = match self.velocity {
             Some(_) => self.track_image_rotation(frame, map)?,
             None => None,
@@ -759,12 +763,6 @@ impl Tracker {
                     from_images: true,
                 });
             }
-        }
-        if self.track_reference(frame, map)? {
-            return Ok((TrackingMethod::ReferenceKeyFrame, false, rejected));
-        }
-        if self.track_last(frame, map)? {
-            return Ok((TrackingMethod::LastFrame, false, rejected));
         }
         if let Some(start) = rejected {
             let method = Start::RejectedPrediction(start.clone()).method();
