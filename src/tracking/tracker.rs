@@ -377,22 +377,28 @@ impl Tracker {
                 }
             };
             inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
+            // Another start, scored against the current pose by the inliers
+            // each start needs.
+            let this = &*self;
+            let try_start = |frame: &mut Frame, alternative: &Start, method, inliers| {
+                let current = LocalMapScore::new(inliers, needed_for(method));
+                let needed = needed_for(alternative.method());
+                this.try_instead(
+                    frame,
+                    map,
+                    alternative,
+                    current,
+                    needed,
+                    recently_relocalised,
+                )
+            };
             if method == TrackingMethod::MotionModel && (inliers < needed_for(method) || doubtful) {
                 // The prediction passed its own test but led the local map
                 // astray, or kept fewer than half its matches (a turn
                 // starting or ending): try the reference keyframe too and
                 // keep the pose with more local-map inliers.
                 let alternative = Start::ReferenceKeyFrame;
-                let current = LocalMapScore::new(inliers, needed_for(method));
-                let needed = needed_for(alternative.method());
-                if let Some(better) = self.try_instead(
-                    &mut frame,
-                    map,
-                    &alternative,
-                    current,
-                    needed,
-                    recently_relocalised,
-                )? {
+                if let Some(better) = try_start(&mut frame, &alternative, method, inliers)? {
                     (method, inliers) = (alternative.method(), better);
                 }
             }
@@ -409,16 +415,7 @@ impl Tracker {
                     if inliers >= needed_for(method) || method == alternative.method() {
                         continue;
                     }
-                    let current = LocalMapScore::new(inliers, needed_for(method));
-                    let needed = needed_for(alternative.method());
-                    if let Some(better) = self.try_instead(
-                        &mut frame,
-                        map,
-                        &alternative,
-                        current,
-                        needed,
-                        recently_relocalised,
-                    )? {
+                    if let Some(better) = try_start(&mut frame, &alternative, method, inliers)? {
                         (method, inliers) = (alternative.method(), better);
                     }
                 }
