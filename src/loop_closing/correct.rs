@@ -29,6 +29,7 @@ use crate::optim::{LieGroup, Se3, Sim3};
 use super::detector::AcceptedLoop;
 use super::drift::pose_difference;
 use super::essential_graph::{optimise_essential_graph, EssentialGraphInput};
+use super::side_scale::{scaled_correction, side_scale};
 
 /// What a correction did.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -49,35 +50,18 @@ pub struct LoopCorrection {
     pub graph_ms: f64,
 }
 
-/// The scale of the query's side of a monocular loop over the loop side's:
-/// the median ratio of a matched pair's depths in the query camera, the
-/// query's own point (current pose) over the loop's (corrected pose);
-/// 1 with fewer than 10 pairs.
+/// The scale of the query's side of a monocular loop over the loop side's
+/// ([`side_scale`] on the one map); 1 with too few pairs.
 fn loop_scale(map: &Map, accepted: &AcceptedLoop, query_pose: &Se3) -> f64 {
-    let Ok(query) = map.keyframe(accepted.query) else {
-        return 1.0;
-    };
-    let mut ratios: Vec<f64> = accepted
-        .matches
-        .iter()
-        .enumerate()
-        .filter_map(|(i, matched)| {
-            let own = map
-                .map_point(map.resolve_point(query.map_point(i)?)?)
-                .ok()?;
-            let other = map.map_point(map.resolve_point((*matched)?)?).ok()?;
-            let z_own = query_pose.transform_point(&own.position).z;
-            let z_other = accepted.pose_cw.transform_point(&other.position).z;
-            (z_own > 0.0 && z_other > 0.0).then(|| z_own / z_other)
-        })
-        .filter(|r| r.is_finite())
-        .collect();
-    if ratios.len() < 10 {
-        return 1.0;
-    }
-    let mid = ratios.len() / 2;
-    let (_, median, _) = ratios.select_nth_unstable_by(mid, f64::total_cmp);
-    *median
+    side_scale(
+        map,
+        accepted.query,
+        query_pose,
+        &accepted.matches,
+        map,
+        &accepted.pose_cw,
+    )
+    .unwrap_or(1.0)
 }
 
 /// Corrects `map` with an accepted loop (see the module's docs; a
@@ -93,14 +77,7 @@ pub fn correct_loop(
     // correction as a similarity (ORB-SLAM3's `mg2oLoopScw`).
     let similarity = (rig.sensor == Sensor::Monocular).then(|| {
         let scale = loop_scale(map, accepted, &query_pose);
-        let corrected_query = Sim3::new(
-            accepted.pose_cw.rotation,
-            accepted.pose_cw.translation * scale,
-            scale,
-        );
-        Sim3::from_se3(&query_pose)
-            .inverse()
-            .compose(&corrected_query)
+        scaled_correction(&query_pose, &accepted.pose_cw, scale)
     });
     let (correction_m, correction_deg) = pose_difference(&query_pose, &accepted.pose_cw);
     let group: BTreeSet<KeyFrameId> = accepted.group.iter().copied().collect();

@@ -25,7 +25,7 @@ use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::features::DescriptorSet;
 use crate::map::{KeyFrameId, Map, MapPointId};
-use crate::optim::Se3;
+use crate::optim::{Se3, Sim3};
 use crate::place::{GlobalDescriptor, KeyframeDatabase, QueryOptions};
 
 use super::drift::loop_travel;
@@ -117,7 +117,7 @@ struct PendingLoop {
     query: KeyFrameId,
     group: Vec<KeyFrameId>,
     group_points: Vec<MapPointId>,
-    correction: Se3,
+    correction: Sim3,
 }
 
 /// What one candidate's check reads, copied out of the map under a short

@@ -25,7 +25,7 @@
 use nalgebra::Vector3;
 
 use crate::map::{KeyFrameId, Map};
-use crate::optim::{LieGroup, Se3};
+use crate::optim::{LieGroup, Sim3};
 
 use super::drift::travel_between;
 use super::thresholds::LoopThresholds;
@@ -92,9 +92,11 @@ impl HandoverGap {
         }
     }
 
-    /// Measures the merge `t_target_active` (`X_target = T · X_active`)
+    /// Measures the merge `t_target_active` (`X_target = S · X_active`)
     /// of the map started after `handover` (`active`, queried by keyframe
     /// `query`) into the map it left (`target`, matched at `candidate`).
+    /// Lengths are in the target's units (a monocular new map's are
+    /// scaled by `S`'s scale).
     /// The new map's first keyframe is its earliest live keyframe after
     /// the handover's frame; `None` when it has none.
     pub fn measure(
@@ -103,8 +105,9 @@ impl HandoverGap {
         candidate: KeyFrameId,
         active: &Map,
         query: KeyFrameId,
-        t_target_active: &Se3,
+        t_target_active: &Sim3,
     ) -> Option<Self> {
+        let scale = t_target_active.scale;
         let first = active
             .keyframes()
             .filter(|k| k.frame_index > handover.last_frame)
@@ -112,7 +115,8 @@ impl HandoverGap {
         let placed = t_target_active.transform_point(&first.pose_wc().translation);
         let gap_m = (placed - handover.last_centre).norm();
         let frames = first.frame_index.saturating_sub(handover.last_frame).max(1);
-        let new_path_m = travel_between(active, first.id(), query).map_or(0.0, |t| t.path_m);
+        let new_path_m =
+            scale * travel_between(active, first.id(), query).map_or(0.0, |t| t.path_m);
         let query_frame = active
             .keyframe(query)
             .map_or(first.frame_index, |k| k.frame_index);
@@ -132,7 +136,7 @@ impl HandoverGap {
             frames,
             speed_m_per_frame: handover.speed_m_per_frame.max(new_speed),
             drift_path_m: old_path_m + new_path_m,
-            scene_depth_m: active.median_scene_depth(query).unwrap_or(0.0),
+            scene_depth_m: scale * active.median_scene_depth(query).unwrap_or(0.0),
         })
     }
 }

@@ -1,6 +1,8 @@
 //! Merge detection: the active map's keyframes against the older maps of
 //! the atlas, as the merge branch of ORB-SLAM3's
-//! `LoopClosing::NewDetectCommonRegions` (stereo: SE3).
+//! `LoopClosing::NewDetectCommonRegions` (stereo and RGB-D: SE(3);
+//! monocular: Sim(3), the new map's scale measured against the older
+//! map's, as ORB-SLAM3's `Sim3Solver` does with `mbFixScale` false).
 //!
 //! Each older map keeps its keyframe database ([`MergeDetector::archive`]
 //! when the system leaves it). A keyframe of the active map queries every
@@ -25,7 +27,7 @@ use std::ops::Deref;
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map};
-use crate::optim::{LieGroup, Se3};
+use crate::optim::{LieGroup, Sim3};
 use crate::place::{KeyframeDatabase, QueryOptions};
 
 use super::detector::AcceptedLoop;
@@ -41,9 +43,11 @@ use super::verify::{check_candidate, detach_group, detach_query, CheckedCandidat
 pub struct AcceptedMerge {
     /// The older map's tag (its index in the caller's atlas).
     pub target: usize,
-    /// `T_target,active`: takes the active map's world frame to the
-    /// target's (`X_target = T · X_active`).
-    pub t_target_active: Se3,
+    /// `S_target,active`: takes the active map's world frame to the
+    /// target's (`X_target = S · X_active = s·R·X_active + t`); its scale
+    /// is 1 for stereo and RGB-D, the target's units per active unit for
+    /// a monocular map.
+    pub t_target_active: Sim3,
     /// The query keyframe (active map), the candidate (target map), the
     /// query's pose in the target's frame and its matches there.
     pub common: AcceptedLoop,
@@ -207,8 +211,8 @@ impl MergeDetector {
                     continue;
                 }
             };
-            // The query moves from T_qw to T_qw·C; C takes target-world
-            // points to active-world ones.
+            // The query moves from T_qw to T_qw·C (in the target's units);
+            // C takes target-world points to active-world ones.
             let CheckedCandidate {
                 verified,
                 correction,

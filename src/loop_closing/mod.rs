@@ -32,6 +32,7 @@ mod global_ba;
 mod handover;
 mod merge;
 mod relocalisation;
+mod side_scale;
 mod stage_counts;
 mod streak;
 mod thresholds;
@@ -54,6 +55,7 @@ pub use global_ba::{
 pub use handover::{median_speed, Handover, HandoverGap};
 pub use merge::{AcceptedMerge, MergeDetector, MergeOutcome};
 pub use relocalisation::{DatabaseRelocaliser, RELOCALISATION_CANDIDATES};
+pub use side_scale::{corrected_pose, scaled_correction, MIN_SCALE_PAIRS};
 pub use stage_counts::{CandidateCheck, LoopStage, LoopStageCounts};
 pub use thresholds::LoopThresholds;
 pub use verify::{

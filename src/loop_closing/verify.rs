@@ -7,16 +7,17 @@
 
 use std::collections::BTreeSet;
 
-use crate::camera::CameraRig;
+use crate::camera::{CameraRig, Sensor};
 use crate::error::SlamError;
 use crate::map::{KeyFrameId, Map, MapPointId};
-use crate::optim::{LieGroup, Se3};
+use crate::optim::{LieGroup, Se3, Sim3};
 use crate::tracking::{
     match_descriptors, match_projected, pnp_ransac, refine_pose, visible_in_frame, Frame,
     VisiblePoint, PNP_RANSAC_ITERATIONS,
 };
 
 use super::drift::{LoopDrift, Travel};
+use super::side_scale::{corrected_pose, scaled_correction, side_scale};
 use super::stage_counts::{CandidateCheck, LoopStage, LoopStageCounts};
 use super::thresholds::LoopThresholds;
 
@@ -108,11 +109,21 @@ pub(crate) fn candidate_group(map: &Map, candidate: KeyFrameId, size: usize) -> 
 
 /// What a candidate's check ([`check_candidate`]) reads of the query's
 /// map: the query keyframe and the covisible keyframes that may confirm
-/// it, copied ([`Map::excerpt`]) so that the check runs with no lock held.
+/// it, and the query's own points (a monocular check's scale compares
+/// their depths with the other side's: [`side_scale`]), copied
+/// ([`Map::excerpt`]) so that the check runs with no lock held.
 pub(crate) fn detach_query(query_map: &Map, query: KeyFrameId, th: &LoopThresholds) -> Map {
     let mut keyframes = vec![query];
     keyframes.extend(query_map.best_covisible(query, th.confirming_covisibles));
-    query_map.excerpt(&keyframes, &[])
+    let own_points: Vec<MapPointId> = query_map
+        .keyframe(query)
+        .map(|kf| {
+            kf.observed_points()
+                .filter_map(|(_, p)| query_map.resolve_point(p))
+                .collect()
+        })
+        .unwrap_or_default();
+    query_map.excerpt(&keyframes, &own_points)
 }
 
 /// What a candidate's check reads of the candidate's map: its group, and
@@ -347,11 +358,12 @@ pub struct Confirmation {
 
 /// Whether keyframe `kf`, moved by the loop's correction, sees the group's
 /// points (ORB-SLAM3's `DetectAndReffineSim3FromLastKF`): its corrected
-/// pose is `T_kw · correction`; search window 8 px, then optimisation.
+/// pose is `T_kw · correction` in the group's units
+/// ([`corrected_pose`]); search window 8 px, then optimisation.
 pub fn confirm_with(
     map: &Map,
     kf: KeyFrameId,
-    correction: &Se3,
+    correction: &Sim3,
     group_points: &[MapPointId],
     rig: &CameraRig,
 ) -> Result<Confirmation, SlamError> {
@@ -364,20 +376,20 @@ pub fn confirm_across(
     query_map: &Map,
     kf: KeyFrameId,
     map: &Map,
-    correction: &Se3,
+    correction: &Sim3,
     group_points: &[MapPointId],
     rig: &CameraRig,
 ) -> Result<Confirmation, SlamError> {
     let Ok(keyframe) = query_map.keyframe(kf) else {
         return Ok(Confirmation {
             inliers: 0,
-            pose_cw: *correction,
+            pose_cw: correction.to_se3_unscaled(),
             matches: Vec::new(),
         });
     };
     let mut frame = Frame::from_keyframe(keyframe, rig);
     frame.map_points.iter_mut().for_each(|p| *p = None);
-    frame.pose_cw = keyframe.pose_cw().compose(correction);
+    frame.pose_cw = corrected_pose(&keyframe.pose_cw(), correction);
     let found = search(&mut frame, map, group_points, rig, 8.0)?;
     let inliers = if found < 10 {
         0
@@ -396,8 +408,10 @@ pub fn confirm_across(
 pub(crate) struct CheckedCandidate {
     /// What the multi-stage check found.
     pub(crate) verified: VerifiedLoop,
-    /// `C`: the query keyframe moves from `T_qw` to `T_qw·C`.
-    pub(crate) correction: Se3,
+    /// `C`: the query keyframe moves from `T_qw` to `T_qw·C`, in the
+    /// group's units ([`scaled_correction`]; a monocular query side's
+    /// scale is measured by [`side_scale`], 1 elsewhere).
+    pub(crate) correction: Sim3,
     /// The candidate group's points.
     pub(crate) group_points: Vec<MapPointId>,
     /// The query and its covisible keyframes (outside the group) that see
@@ -455,7 +469,22 @@ pub(crate) fn check_candidate(
             stage: "loop check",
             source,
         })?;
-    let correction = query_pose.inverse().compose(&verified.pose_cw);
+    // A monocular side's scale is its own (drift, or a map started after
+    // a loss): the neighbours that confirm move in the group's units.
+    let scale = if rig.sensor == Sensor::Monocular {
+        side_scale(
+            query_map,
+            query,
+            &query_pose,
+            &verified.matches,
+            points_map,
+            &verified.pose_cw,
+        )
+        .unwrap_or(1.0)
+    } else {
+        1.0
+    };
+    let correction = scaled_correction(&query_pose, &verified.pose_cw, scale);
     let in_group: BTreeSet<KeyFrameId> = verified.group.iter().copied().collect();
     let mut confirmations = 1;
     for other in query_map

@@ -49,6 +49,14 @@ pub enum MapError {
         /// The id in both.
         id: u64,
     },
+    /// A map with depth measurements cannot be scaled.
+    #[error("cannot scale a map by {scale}: {keyframe} holds depth measurements, whose scale is the sensor's")]
+    ScaledDepths {
+        /// A keyframe with depths.
+        keyframe: KeyFrameId,
+        /// The scale asked for.
+        scale: f64,
+    },
     /// Joining spanning trees at a keyframe that is not live.
     #[error("cannot join the maps' spanning trees at {0}: it is not live")]
     JoinAtUnknownKeyFrame(KeyFrameId),

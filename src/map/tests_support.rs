@@ -13,6 +13,12 @@ pub(crate) const DIM: usize = 2;
 
 /// `n` keypoints, every other one with a stereo measurement.
 pub(crate) fn measurements(n: usize) -> FrameMeasurements {
+    measurements_with(n, true)
+}
+
+/// `n` keypoints, every other one with a stereo measurement when `stereo`
+/// (none otherwise: a monocular keyframe).
+pub(crate) fn measurements_with(n: usize, stereo: bool) -> FrameMeasurements {
     FrameMeasurements {
         keypoints: (0..n)
             .map(|i| Keypoint {
@@ -30,7 +36,7 @@ pub(crate) fn measurements(n: usize) -> FrameMeasurements {
         },
         stereo: (0..n)
             .map(|i| {
-                (i % 2 == 0).then_some(StereoMeasurement {
+                (stereo && i % 2 == 0).then_some(StereoMeasurement {
                     right_u: 0.0,
                     depth: 5.0,
                 })
@@ -44,14 +50,19 @@ pub(crate) fn measurements(n: usize) -> FrameMeasurements {
 /// `keyframes` keyframes along x added to `map`, each sharing 20 points
 /// with the previous one (keypoints 20..40 of keyframe k-1 and 0..20 of
 /// keyframe k), connected: the spanning tree is a chain.
-pub(crate) fn small_map(mut map: Map, keyframes: usize) -> Map {
+pub(crate) fn small_map(map: Map, keyframes: usize) -> Map {
+    small_map_with(map, keyframes, true)
+}
+
+/// [`small_map`] with stereo measurements or (`stereo` false) none.
+pub(crate) fn small_map_with(mut map: Map, keyframes: usize, stereo: bool) -> Map {
     let mut previous: Option<KeyFrameId> = None;
     for k in 0..keyframes {
         let pose = Se3::new(
             UnitQuaternion::identity(),
             Vector3::new(-(k as f64), 0.0, 0.0),
         );
-        let Ok(kf) = map.add_keyframe(k, k as f64, pose, measurements(40)) else {
+        let Ok(kf) = map.add_keyframe(k, k as f64, pose, measurements_with(40, stereo)) else {
             panic!("keyframe {k}");
         };
         if let Some(prev) = previous {

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 use serde::Serialize;
 
-use crate::camera::{CameraRig, Sensor};
+use crate::camera::CameraRig;
 use crate::error::SlamError;
 use std::collections::BTreeMap;
 
@@ -65,6 +65,9 @@ pub struct MergeRecord {
     pub transform_m: f64,
     /// Its rotation (degrees).
     pub transform_deg: f64,
+    /// Its scale: the older map's units per unit of the merged map (1 for
+    /// stereo and RGB-D; a monocular map's own scale otherwise).
+    pub scale: f64,
     /// The fusion and essential-graph correction that followed.
     pub correction: LoopCorrection,
 }
@@ -298,8 +301,7 @@ impl LoopClosingStage {
             step.detection = Some(Detection::Loop(accepted));
             return Ok(step);
         }
-        // A monocular map would merge in Sim(3); `Map::absorb` is SE(3).
-        if !self.merger.has_archived() || rig.sensor == Sensor::Monocular {
+        if !self.merger.has_archived() {
             return Ok(step);
         }
         let Some(descriptor) = outcome.descriptor else {
@@ -344,8 +346,9 @@ impl LoopClosingStage {
 
     /// Merges the active map (`active`, atlas index `active_index`) into
     /// the older map of an accepted merge (`target`): the active map's
-    /// keyframes and points move into the older map's frame
-    /// (`Map::absorb`; `active` is left empty), the duplicates are fused
+    /// keyframes and points move into the older map's frame and units
+    /// (`Map::absorb`, a similarity for a monocular map; `active` is left
+    /// empty), the duplicates are fused
     /// and the essential graph optimised ([`correct_loop`]), and the two
     /// keyframe databases become one. Local mapping must not run meanwhile.
     /// `Ok(None)` when the matched keyframes were culled since the check
@@ -381,8 +384,11 @@ impl LoopClosingStage {
             .absorb(self.detector.take_database()?)
             .in_stage("keyframe database merge")?;
         self.detector.replace_database(database)?;
-        let (transform_m, transform_deg) =
-            pose_difference(&Se3::identity(), &accepted.t_target_active);
+        let transform = &accepted.t_target_active;
+        let (transform_m, transform_deg) = pose_difference(
+            &Se3::identity(),
+            &Se3::new(transform.rotation, transform.translation),
+        );
         let record = MergeRecord {
             query_frame,
             match_frame,
@@ -392,6 +398,7 @@ impl LoopClosingStage {
             confirmations: common.confirmations,
             transform_m,
             transform_deg,
+            scale: transform.scale,
             correction,
         };
         tracing::info!(
@@ -401,6 +408,7 @@ impl LoopClosingStage {
             into_map = accepted.target,
             inliers = common.inliers,
             transform_m,
+            scale = transform.scale,
             "maps merged"
         );
         Ok(Some(record))

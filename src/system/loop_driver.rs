@@ -239,8 +239,8 @@ impl SlamSystem {
                 let active = self.atlas.active().index;
                 match stage.merge(&view.active, active, &target, &accepted, &self.rig)? {
                     Some(record) => {
+                        self.follow_merge(accepted.target, record.scale);
                         self.loop_log.merges.push(record);
-                        self.follow_merge(accepted.target);
                         target
                     }
                     None => {
@@ -254,10 +254,12 @@ impl SlamSystem {
         self.start_global_ba(&corrected)
     }
 
-    /// After the active map was absorbed into map `into`: `into` becomes
-    /// active and the records of the absorbed map's frames name it (their
-    /// keyframe ids are unchanged, see [`super::Atlas`]).
-    fn follow_merge(&mut self, into: MapIndex) {
+    /// After the active map was absorbed into map `into`, its units scaled
+    /// by `scale` (1 but for a monocular map): `into` becomes active, the
+    /// records of the absorbed map's frames name it (their keyframe ids are
+    /// unchanged, see [`super::Atlas`]) and their poses relative to their
+    /// keyframes, like tracking's, are measured in `into`'s units.
+    fn follow_merge(&mut self, into: MapIndex, scale: f64) {
         let Some(merged) = self.atlas.merge_active_into(into) else {
             return;
         };
@@ -268,8 +270,10 @@ impl SlamSystem {
             if let Some(rel) = record.relative_pose.as_mut() {
                 if rel.map == merged {
                     rel.map = into;
+                    rel.pose.translation *= scale;
                 }
             }
         }
+        self.tracker.rescale(scale);
     }
 }

@@ -784,6 +784,19 @@ impl Tracker {
         Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
     }
 
+    /// The map was scaled by `scale` (a monocular map merged into an older
+    /// one in Sim(3)): the last frame's pose relative to its reference
+    /// keyframe and the velocity keep their rotations and scale their
+    /// translations, so the next frame's prediction lands in the new units.
+    pub fn rescale(&mut self, scale: f64) {
+        if let Some((_, rel)) = self.last_relative.as_mut() {
+            rel.translation *= scale;
+        }
+        if let Some(velocity) = self.velocity.as_mut() {
+            velocity.translation *= scale;
+        }
+    }
+
     /// The last tracked frame (an untracked frame is not kept).
     pub fn last_frame(&self) -> Option<&Frame> {
         self.last_frame.as_ref()

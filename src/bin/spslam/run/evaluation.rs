@@ -57,8 +57,9 @@ pub struct LinkTruth {
     /// Whether they are the same place (`distance_m` ≤ [`SAME_PLACE_M`]).
     pub same_place: bool,
     /// How far the run's final relative translation between the two frames
-    /// is from the truth's, m (None for monocular runs, whose scale is
-    /// free).
+    /// is from the truth's, m. A monocular run's is first brought to the
+    /// truth's units by its local scale ([`local_scale`]); `None` where
+    /// that scale is not known.
     pub relative_error_m: Option<f64>,
     /// Whether the link is right: the same place, or a relative pose that
     /// agrees with the truth within [`CONSISTENT_LINK_M`].
@@ -90,8 +91,37 @@ pub fn ground_truth_row(
     }
 }
 
+/// Rows on either side of a linked frame over which a monocular run's
+/// local scale is measured ([`local_scale`]).
+pub const LOCAL_SCALE_ROWS: usize = 10;
+
+/// Path length along `positions` over the rows `around ± LOCAL_SCALE_ROWS`.
+fn path_around(positions: &[nalgebra::Vector3<f64>], around: usize) -> f64 {
+    let start = around.saturating_sub(LOCAL_SCALE_ROWS);
+    let end = (around + LOCAL_SCALE_ROWS).min(positions.len().saturating_sub(1));
+    (start..end)
+        .map(|i| (positions[i + 1] - positions[i]).norm())
+        .sum()
+}
+
+/// A monocular run's scale at a link (ground-truth metres per unit of the
+/// estimate): the true path length over the estimate's, both over
+/// [`LOCAL_SCALE_ROWS`] rows either side of the two linked frames
+/// (`(gt row, estimate row)` each). Its scale drifts, so a whole-run
+/// alignment's scale would misjudge a link's length by the drift; `None`
+/// when the estimate did not move there.
+fn local_scale(gt: &Trajectory, estimate: &Trajectory, ends: [(usize, usize); 2]) -> Option<f64> {
+    let positions =
+        |t: &Trajectory| -> Vec<_> { t.poses.iter().map(|p| p.translation.vector).collect() };
+    let (truth, run) = (positions(gt), positions(estimate));
+    let true_path: f64 = ends.iter().map(|(g, _)| path_around(&truth, *g)).sum();
+    let run_path: f64 = ends.iter().map(|(_, e)| path_around(&run, *e)).sum();
+    (run_path > 0.0 && true_path.is_finite()).then(|| true_path / run_path)
+}
+
 /// Each link (query, match timestamps of the estimate) against the ground
-/// truth ([`ground_truth_row`]).
+/// truth ([`ground_truth_row`]); a monocular run's (`metric` false) at its
+/// local scale ([`local_scale`]).
 fn link_truth(
     gt: &Trajectory,
     estimate: &Trajectory,
@@ -106,17 +136,20 @@ fn link_truth(
             let (q, m) = (gt_index(query_time)?, gt_index(match_time)?);
             let distance_m =
                 (gt.poses[q].translation.vector - gt.poses[m].translation.vector).norm();
-            let relative_error_m = if metric {
-                let (eq, em) = (
-                    nearest(&estimate.timestamps, query_time)?,
-                    nearest(&estimate.timestamps, match_time)?,
-                );
+            let (eq, em) = (
+                nearest(&estimate.timestamps, query_time)?,
+                nearest(&estimate.timestamps, match_time)?,
+            );
+            let scale = if metric {
+                Some(1.0)
+            } else {
+                local_scale(gt, estimate, [(q, eq), (m, em)])
+            };
+            let relative_error_m = scale.map(|scale| {
                 let truth = gt.poses[q].inverse() * gt.poses[m];
                 let run = estimate.poses[eq].inverse() * estimate.poses[em];
-                Some((truth.translation.vector - run.translation.vector).norm())
-            } else {
-                None
-            };
+                (truth.translation.vector - run.translation.vector * scale).norm()
+            });
             let same_place = distance_m <= SAME_PLACE_M;
             Some(LinkTruth {
                 query_time,
@@ -328,13 +361,28 @@ mod tests {
         let truth = link_truth(&gt_timed, &estimate, &links, false, true);
         assert!((truth[0].distance_m - 30.0).abs() < 1e-9);
         // An estimate squeezed to half the steps puts frame 30 15 m from
-        // frame 0 where the truth has 30 m: the far link is false. Monocular
-        // runs (scale free) judge by distance alone.
+        // frame 0 where the truth has 30 m: the far link is false. A
+        // monocular run (scale free) is judged at its local scale, 2 here:
+        // the same squeezed run is right.
         let squeezed = along_x(&times, 0.5);
         let truth = link_truth(&gt, &squeezed, &links, true, true);
         assert!((truth[0].relative_error_m.unwrap() - 15.0).abs() < 1e-9 && !truth[0].correct);
         assert!(truth[1].correct);
         let truth = link_truth(&gt, &squeezed, &links, true, false);
+        assert!(truth[0].relative_error_m.unwrap() < 1e-9 && truth[0].correct);
+        // A monocular run with a false jump of 5 units back at frame 21: at
+        // its local scale (29 m of truth over 18.5 units) frame 30 lands
+        // about 15.7 m from frame 0 where the truth has 30 m: false.
+        let mut wrong = along_x(&times, 0.5);
+        for pose in wrong.poses.iter_mut().skip(21) {
+            pose.translation.vector.x -= 5.0;
+        }
+        let truth = link_truth(&gt, &wrong, &links, true, false);
+        assert!((truth[0].relative_error_m.unwrap() - (30.0 - 10.0 * 29.0 / 18.5)).abs() < 1e-9);
+        assert!(!truth[0].correct);
+        // An estimate that stands still there has no scale: not judged right.
+        let still = along_x(&times, 0.0);
+        let truth = link_truth(&gt, &still, &links, true, false);
         assert!(truth[0].relative_error_m.is_none() && !truth[0].correct);
     }
 }
