@@ -235,19 +235,21 @@ fn superpoint_rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames() {
 /// not met). A monocular camera's new points come only from local
 /// mapping's triangulation, so keyframes that wait for a slow mapper leave
 /// tracking without points in the turns. The monocular rule (weak frames
-/// are keyframes through condition 1c, and a keyframe wanted while mapping
-/// is busy interrupts its BA: `tracking::keyframe::needs_keyframe`) took
-/// this lap from 72 lost frames in 12 maps to 15 in 4 (three of its four
-/// corners, 5 frames each); the run without the lag tracks every frame
-/// (0.552 m Sim3, 0.24 % of the path). The bounds guard the gain with a
-/// corner's margin.
+/// are keyframes through condition 1c: `tracking::keyframe::needs_keyframe`)
+/// took this lap from 72 lost frames in 12 maps to 15 in 4 (three of its
+/// four corners, 5 frames each) when a keyframe wanted while mapping was
+/// busy interrupted its BA every time; with ORB-SLAM3's condition for the
+/// interrupt (1a or 1c, session 43) 5 frames are lost, at the third
+/// corner, in 2 maps, with 94 keyframes (51 with ORB-SLAM3's rule of no
+/// monocular keyframe while mapping is busy). The run without the lag
+/// tracks every frame (0.552 m Sim3, 0.24 % of the path). The bounds
+/// guard the gain with a corner's margin; ORB's outputs do not depend on
+/// the CPU kind.
 #[test]
 fn monocular_keeps_the_lap_but_its_corners_when_mapping_lags_five_frames() {
     let (lost, maps, keyframes, _, interrupted) = orb_sensor_lap(Sensor::Monocular, 5);
-    assert!(lost.len() <= 20, "{} frames lost: {lost:?}", lost.len());
-    assert!(maps <= 5, "{maps} maps");
-    // Measured: 118 keyframes (one per two frames, as a busy mapper allows,
-    // against 51 before), and the replayed interrupts cut BAs short.
-    assert!(keyframes >= 100, "{keyframes} keyframes");
+    assert!(lost.len() <= 10, "{} frames lost: {lost:?}", lost.len());
+    assert!(maps <= 3, "{maps} maps");
+    assert!(keyframes >= 80, "{keyframes} keyframes");
     assert!(interrupted > 0, "no BA was interrupted");
 }

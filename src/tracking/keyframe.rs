@@ -108,8 +108,7 @@ pub(crate) struct KeyFrameDecision {
 /// four departures: condition 2's ratio counts against what the view of
 /// the reference tracked while the camera stays near it (below); a keyframe wanted because tracking is weak
 /// (condition 1c) is never refused for local mapping's queue; a monocular
-/// camera has a condition 1c too, and interrupts a busy mapper's BA
-/// whenever it wants a keyframe (below); and ORB-SLAM3's close-point condition
+/// camera has a condition 1c too (below); and ORB-SLAM3's close-point condition
 /// (`bNeedToInsertClose`: fewer than 100 tracked close points, more than
 /// 70 untracked) is also applied to the next frame as the motion model
 /// predicts it, counting this frame's tracked close points that stay in
@@ -178,11 +177,20 @@ pub(crate) struct KeyFrameDecision {
 /// ORB 143. While mapping is busy, spslam counts every monocular keypoint
 /// as close (it has no depth), so ORB-SLAM3's close-point condition reads
 /// "fewer than 100 tracked points" and makes a weak monocular frame a
-/// keyframe through condition 1c; and a monocular keyframe wanted while
-/// mapping is busy interrupts the BA
-/// ([`KeyFrameDecision::interrupt_mapping`]), so the mapper's triangulation
-/// comes sooner: 227 of 232 for both extractors, the frames the run
-/// without the lag tracks too. An idle mapper keeps ORB-SLAM3's monocular
+/// keyframe through condition 1c: 227 of 232 for both extractors. A
+/// monocular keyframe wanted while mapping is busy interrupts the BA
+/// ([`KeyFrameDecision::interrupt_mapping`]) when ORB-SLAM3's
+/// `NeedNewKeyFrame` does: when condition 1a (`mMaxFrames` since the last
+/// keyframe) or 1c (weak tracking) holds with condition 2. Until session
+/// 43 spslam interrupted for every wanted keyframe; with ORB-SLAM3's
+/// condition the 640×480 lap with mapping five times slower
+/// (`--mapping-lag 5`) tracks 232 of 232 frames with SuperPoint + ANMS
+/// (227 before; ORB 227 both ways) and the tests' 480×360 ORB lap loses 5
+/// frames in 2 maps (15 in 4 before). Either way nearly every local BA
+/// that runs under that lag is cut short (65 of 69 before, 41 of 42
+/// after, SuperPoint + ANMS), and the monocular map's scale drifts
+/// (EVALUATION.md, "Monocular maps merged in Sim(3)"). An idle mapper
+/// keeps ORB-SLAM3's monocular
 /// rule exactly. Stereo and RGB-D keyframes bring their own
 /// close points and never interrupt: the BA that aborted for every queued
 /// keyframe drifted an RGB-D lap 16× more (EVALUATION.md, "Local mapping
@@ -296,10 +304,11 @@ pub(crate) fn needs_keyframe(
     // Condition 1b (ORB-SLAM3's `mMinFrames` is 0): an idle mapper takes
     // every keyframe condition 2 asks for. A busy one takes a keyframe on
     // condition 1c (tracking is weak) always, and a stereo or RGB-D one on
-    // condition 1a while fewer than three wait.
+    // condition 1a while fewer than three wait. A busy mapper's BA is
+    // interrupted for a monocular camera on 1a or 1c, as ORB-SLAM3 does.
     KeyFrameDecision {
         insert: c1b || c1c || (!mono && c1a && ctx.mapping_queue < MAX_MAPPING_QUEUE),
-        interrupt_mapping: mono && !c1b,
+        interrupt_mapping: mono && !c1b && (c1a || c1c),
     }
 }
 
