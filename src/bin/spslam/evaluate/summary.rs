@@ -311,7 +311,7 @@ pub fn markdown(rows: &[RunRow], missing: &[MissingRun], set: &str) -> String {
         md,
         "Cells: ATE RMSE in m (SE3-aligned; Sim3 for monocular runs; the final-position drift where a straight path cannot be aligned) (tracked/frames, keyframes). \
          The winner makes no false loop or merge, then tracks the most frames, then has the lowest ATE; under 5 % apart is a tie. \
-         False links: loops and merges joining frames over 10 m apart in the ground truth whose final relative pose is over 1 m from the truth's.\n"
+         False links: loops and merges joining frames over 10 m apart in the ground truth whose final relative pose is over 1 m from the truth's (a monocular run's brought to metres by its path length over the 10 rows either side of each frame).\n"
     );
     let _ = writeln!(
         md,
