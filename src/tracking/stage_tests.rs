@@ -256,7 +256,7 @@ fn near_its_reference_the_ratio_counts_against_the_most_tracked() {
 }
 
 #[test]
-fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
+fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba_as_orb_slam3_does() {
     let world = PointWorld::new(3, 900, (14.0, 5.0, 4.0, 40.0));
     let (map, kfs) = world.keyframe_chain(3);
     let reference = kfs[2].0;
@@ -274,13 +274,15 @@ fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
             *p = Some(crate::map::MapPointId(0));
         }
     };
-    // (name, inliers / reference, tracked points, queue, insert, interrupt)
+    // (name, inliers / reference, tracked points, queue, frames since the
+    // last keyframe (`max_frames` is 10), insert, interrupt)
     let rows = [
         (
             "idle, under 90 % of the reference: ORB-SLAM3's rule",
             0.5,
             200,
             0,
+            1,
             true,
             false,
         ),
@@ -289,14 +291,25 @@ fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
             0.95,
             50,
             0,
+            1,
             false,
             false,
         ),
         (
-            "busy, under 90 %: refused, the BA interrupted",
+            "busy, under 90 %, a frame after the last keyframe: refused, the BA left to run (neither 1a nor 1c)",
             0.5,
             200,
             1,
+            1,
+            false,
+            false,
+        ),
+        (
+            "busy, under 90 %, max_frames after the last keyframe: refused, the BA interrupted (1a)",
+            0.5,
+            200,
+            1,
+            10,
             false,
             true,
         ),
@@ -304,6 +317,7 @@ fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
             "busy, fewer than 100 points tracked: condition 1c inserts, the BA interrupted",
             0.5,
             50,
+            1,
             1,
             true,
             true,
@@ -313,15 +327,16 @@ fn a_monocular_keyframe_wanted_while_mapping_is_busy_interrupts_its_ba() {
             0.95,
             200,
             1,
+            10,
             false,
             false,
         ),
     ];
-    for (name, inliers, tracked, queue, insert, interrupt) in rows {
+    for (name, inliers, tracked, queue, since, insert, interrupt) in rows {
         set_tracked(&mut frame, tracked);
         let ctx = KeyFrameContext {
             reference,
-            last_keyframe_frame: frame.index - 1,
+            last_keyframe_frame: frame.index - since,
             last_relocalisation_frame: None,
             inliers: (inliers * r).round() as usize,
             near_reference_count: usize::MAX,

@@ -202,8 +202,14 @@ fn loops_text(loops: &[LoopRecord], rejected: &[RejectedLoopRecord]) -> String {
 fn merges_text(merges: &[MergeRecord]) -> String {
     let mut text = String::new();
     for m in merges {
+        // A monocular map's scale; stereo and RGB-D merges are rigid.
+        let scale = if m.scale == 1.0 {
+            String::new()
+        } else {
+            format!(", scaled by {:.3}", m.scale)
+        };
         text.push_str(&format!(
-            "map merge: map {} into map {} at frame {} -> frame {}, {} inliers, {} confirmations, maps {:.2} m / {:.1} deg apart, {} points fused\n",
+            "map merge: map {} into map {} at frame {} -> frame {}, {} inliers, {} confirmations, maps {:.2} m / {:.1} deg apart{scale}, {} points fused\n",
             m.merged_map,
             m.into_map,
             m.query_frame,
