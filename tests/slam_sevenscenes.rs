@@ -20,9 +20,17 @@ use std::path::Path;
 use std::process::Command;
 
 use common::temp_dir::TempDir;
+use spslam::eval::ate::{alignment_transform, position_errors};
+use spslam::eval::io::read_tum;
+use spslam::eval::{Alignment, Trajectory};
 
 /// Frames of the excerpt run (half of it: the suite's time).
 const FRAMES: &str = "150";
+/// The RMSE bound of the frames between the monocular initial views,
+/// metres: twice the measured 0.0053 m (ORB is the same on every CPU kind;
+/// the camera moves 2.4 cm over those frames, and rows left at the first
+/// view's pose would be 0.013 m off, rows turned the wrong way more).
+const BETWEEN_BOUND_M: f64 = 0.010;
 
 /// What one run's `report.json` says.
 #[derive(Debug)]
@@ -37,31 +45,9 @@ struct Outcome {
 /// run is deterministic, no loop closing: the excerpt has no revisit).
 fn run(kitchen: &Path, extractor: &str) -> Outcome {
     let out = TempDir::new("sevenscenes", extractor);
-    let output = Command::new(env!("CARGO_BIN_EXE_spslam"))
-        .arg("run")
-        .arg("--dataset")
-        .arg(format!("tum:{}", kitchen.display()))
-        .args(["--sensor", "rgbd", "--extractor", extractor])
-        .arg("--settings")
-        .arg(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/settings/SevenScenes.yaml"
-        ))
-        .args(["--inline-mapping", "--no-loop-closing", "--frames", FRAMES])
-        .arg("--out")
-        .arg(out.path())
-        .output()
-        .unwrap_or_else(|e| panic!("spslam run: {e}"));
-    assert!(
-        output.status.success(),
-        "spslam run --extractor {extractor}: {}\n{}",
-        output.status,
-        String::from_utf8_lossy(&output.stderr)
-    );
-    let path = out.path().join("report.json");
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let text = run_into(kitchen, "rgbd", extractor, out.path());
     let report: serde_json::Value =
-        serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("report.json: {e}"));
     let count = |key: &str| {
         report["summary"][key]
             .as_u64()
@@ -75,6 +61,34 @@ fn run(kitchen: &Path, extractor: &str) -> Outcome {
             .as_f64()
             .unwrap_or_else(|| panic!("evaluation.ate.se3_rmse missing in {text}")),
     }
+}
+
+/// `spslam run` on the kitchen frames with `sensor` into `out`; returns
+/// the text of its `report.json`.
+fn run_into(kitchen: &Path, sensor: &str, extractor: &str, out: &Path) -> String {
+    let output = Command::new(env!("CARGO_BIN_EXE_spslam"))
+        .arg("run")
+        .arg("--dataset")
+        .arg(format!("tum:{}", kitchen.display()))
+        .args(["--sensor", sensor, "--extractor", extractor])
+        .arg("--settings")
+        .arg(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/settings/SevenScenes.yaml"
+        ))
+        .args(["--inline-mapping", "--no-loop-closing", "--frames", FRAMES])
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap_or_else(|e| panic!("spslam run: {e}"));
+    assert!(
+        output.status.success(),
+        "spslam run --sensor {sensor} --extractor {extractor}: {}\n{}",
+        output.status,
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let path = out.join("report.json");
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
 #[test]
@@ -104,4 +118,85 @@ fn kitchen_rgbd_tracks_every_frame_superpoint_beside_orb() {
     );
     assert!(superpoint.ate_se3_m <= 0.022, "SuperPoint: {superpoint:?}");
     assert!(orb.ate_se3_m <= 0.021, "ORB: {orb:?}");
+}
+
+/// The kitchen, monocular, ORB: the handheld camera moves slowly, so the
+/// two-view initialisation waits for parallax over many frames
+/// (ORB-SLAM3's `MonocularInitialization` gives them no pose). Once the
+/// map exists, every frame between the two views is localised in it
+/// (`tracking::between_views`), so every frame has a pose from the map,
+/// as accurate as the frames tracked live after it: the whole run is
+/// aligned to the ground truth on the live frames alone (Sim(3)) and the
+/// frames between the views are judged in that alignment.
+///
+/// Measured (Intel Xeon, ORB, mapping inline, 150 frames): views 0 and
+/// 20, all 19 frames between localised; in the alignment on the live
+/// frames (scale 2.037) the live frames' RMSE is 0.0184 m and the frames
+/// between the views' 0.0053 m. Before, those 19 frames were counted as
+/// not initialised and had only a coasted row.
+#[test]
+fn kitchen_monocular_localises_the_frames_between_its_initial_views() {
+    let test = "slam_sevenscenes";
+    let kitchen = common::shared_data_root().join("sevenscenes/kitchen_first300");
+    if !kitchen.join("rgb.txt").is_file() {
+        common::missing(test, &format!("{}", kitchen.display()));
+        return;
+    }
+    let out = TempDir::new("sevenscenes", "mono");
+    let text = run_into(&kitchen, "mono", "orb", out.path());
+    let report: serde_json::Value =
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("report.json: {e}"));
+    let frames = report["frames"]
+        .as_array()
+        .unwrap_or_else(|| panic!("frames missing in report.json"));
+    let with_method = |method: &str| -> Vec<usize> {
+        frames
+            .iter()
+            .filter(|f| f["method"] == method)
+            .filter_map(|f| f["index"].as_u64())
+            .map(|i| i as usize)
+            .collect()
+    };
+    let views = with_method("Initialisation");
+    let between = with_method("BetweenInitialViews");
+    let tracked = frames.iter().filter(|f| f["state"] == "Ok").count();
+    eprintln!("initial views {views:?}; localised between them: {between:?}; tracked {tracked}");
+    let [first, second] = views[..] else {
+        panic!("expected one monocular initialisation (two views), got {views:?}");
+    };
+    assert!(
+        second > first + 10,
+        "views {first} and {second}: too few frames between to test"
+    );
+    assert_eq!(
+        between,
+        (first + 1..second).collect::<Vec<_>>(),
+        "every frame between the views localised"
+    );
+    assert_eq!(tracked, frames.len(), "every frame has a pose from the map");
+
+    let ok = |r: Result<Trajectory, spslam::eval::EvalError>| r.unwrap_or_else(|e| panic!("{e}"));
+    let estimate = ok(read_tum(&out.path().join("trajectory_tum.txt")));
+    let truth = ok(read_tum(&kitchen.join("groundtruth.txt")));
+    let truth = truth.select(&(0..estimate.len()).collect::<Vec<_>>());
+    let live: Vec<usize> = (second..estimate.len()).collect();
+    let sim = alignment_transform(
+        &truth.select(&live),
+        &estimate.select(&live),
+        Alignment::Sim3,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let errors = position_errors(&truth, &estimate.transformed(&sim.transform, sim.scale));
+    let rmse = |rows: &[usize]| {
+        (rows.iter().map(|&i| errors[i] * errors[i]).sum::<f64>() / rows.len() as f64).sqrt()
+    };
+    let (live_rmse, between_rmse) = (rmse(&live), rmse(&between));
+    eprintln!(
+        "Sim(3) on the live frames (scale {:.3}): live RMSE {live_rmse:.4} m, between the views {between_rmse:.4} m",
+        sim.scale
+    );
+    assert!(
+        between_rmse <= BETWEEN_BOUND_M,
+        "between the views: {between_rmse:.4} m"
+    );
 }

@@ -15,7 +15,9 @@ use spslam::dataset::synthetic::SceneName;
 use spslam::features::GrayImage;
 use spslam::optim::{LieGroup, Se3};
 use spslam::system::GAP_HORIZON_S;
-use spslam::tracking::{TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S};
+use spslam::tracking::{
+    TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S, YOUNG_MAP_KEYFRAMES,
+};
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
@@ -102,6 +104,47 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
     eprintln!("new map: {distance:.1} m travelled, relative error {error:.3} m");
     assert!(distance > 10.0);
     assert!(error < 0.02 * distance, "{error} m over {distance} m");
+}
+
+#[test]
+fn a_camera_kidnapped_from_a_young_map_starts_the_new_map_on_the_next_frame() {
+    // ORB-SLAM3's `Tracking::Track` waits in `RECENTLY_LOST` only in a map
+    // of more than 10 keyframes; a younger map is given up at once. Here
+    // the camera is carried off after 8 frames (8 keyframes): frame 8 is
+    // lost, frame 9 tries the young map once and starts the new map
+    // itself, where the 40-frame map above waits out the patience.
+    let sequence = small_sequence(SceneName::Loop, 232);
+    let mut slam = orb_slam(&sequence);
+    let kidnap = 8;
+    let inputs: Vec<usize> = (0..kidnap).chain(160..200).collect();
+    for (k, &i) in inputs.iter().enumerate() {
+        let (_, l, r) = images(&sequence, i);
+        ok(slam.process(k, k as f64 * 0.1, l.view(), r.view()));
+    }
+    ok(slam.finish());
+    let records = slam.records();
+    let maps = slam.atlas().maps();
+    let keyframes_before = records[..kidnap].iter().filter(|r| r.keyframe).count();
+    eprintln!(
+        "{keyframes_before} keyframes before the kidnap; maps from frames {:?}",
+        maps.iter().map(|m| m.first_frame).collect::<Vec<_>>()
+    );
+    assert!(keyframes_before <= YOUNG_MAP_KEYFRAMES);
+    assert_eq!(maps.len(), 2, "a second map after the kidnapping");
+    assert_eq!(records[kidnap].state, TrackingState::Lost);
+    assert_eq!(
+        maps[1].first_frame,
+        kidnap + 1,
+        "the new map starts on the next frame"
+    );
+    for r in &records[kidnap + 1..] {
+        assert_eq!(
+            (r.map, r.state),
+            (1, TrackingState::Ok),
+            "frame {}",
+            r.index
+        );
+    }
 }
 
 #[test]

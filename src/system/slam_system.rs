@@ -16,8 +16,8 @@ use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
 use crate::tracking::{
-    Extractors, FrameBuilder, Frontend, SensorFeatures, SensorImages, Tracker, TrackingMethod,
-    TrackingState,
+    Extractors, FrameBuilder, Frontend, LocalisedBetweenViews, SensorFeatures, SensorImages,
+    Tracker, TrackingMethod, TrackingState,
 };
 
 use super::atlas::{Atlas, MapIndex};
@@ -597,6 +597,9 @@ impl SlamSystem {
         if let Some((earlier, kf)) = outcome.earlier_keyframe {
             self.record_earlier_keyframe(earlier, map_index, kf);
         }
+        for localised in &outcome.between_views {
+            self.record_between_views(localised, map_index);
+        }
         let mapping_ms = mapping.as_ref().map_or(0.0, |m| m.elapsed_ms);
         let untracked =
             outcome.relative_pose.is_none() || outcome.method == TrackingMethod::Initialisation;
@@ -652,6 +655,27 @@ impl SlamSystem {
                 map,
                 keyframe,
                 pose: Se3::identity(),
+            });
+        }
+    }
+
+    /// A frame between a monocular initialisation's two views was
+    /// localised in the new map: its record gets that pose.
+    fn record_between_views(&mut self, localised: &LocalisedBetweenViews, map: MapIndex) {
+        if let Some(record) = self
+            .records
+            .iter_mut()
+            .rev()
+            .find(|r| r.index == localised.index)
+        {
+            record.state = TrackingState::Ok;
+            record.method = TrackingMethod::BetweenInitialViews;
+            record.inliers = localised.inliers;
+            record.map = map;
+            record.relative_pose = Some(RelativePose {
+                map,
+                keyframe: localised.keyframe,
+                pose: localised.relative_pose,
             });
         }
     }

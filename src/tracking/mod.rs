@@ -24,6 +24,7 @@
 //! (`crate::loop_closing::DatabaseRelocaliser`), else the newest
 //! [`MAX_SCANNED_KEYFRAMES`] keyframes.
 
+mod between_views;
 mod frame;
 mod frontend;
 mod image_rotation;
@@ -36,6 +37,7 @@ mod relocalise;
 mod search;
 mod tracker;
 
+pub use between_views::LocalisedBetweenViews;
 pub use frame::Frame;
 pub use frontend::{Extractors, FrameBuilder, Frontend, SensorFeatures, SensorImages};
 pub use image_rotation::{estimate_rotation, ImageRotation, SmallBlurryImage};
@@ -48,6 +50,7 @@ pub use relocalise::{RelocalisationCandidates, MAX_SCANNED_KEYFRAMES, MIN_RELOCA
 pub(crate) use search::{match_descriptors, match_projected, visible_in_frame, VisiblePoint};
 pub use tracker::{
     TrackOutcome, Tracker, TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S,
+    YOUNG_MAP_KEYFRAMES,
 };
 
 #[cfg(test)]

@@ -37,12 +37,20 @@ pub(crate) struct MonoInitialMap {
     pub points: Vec<MapPointId>,
 }
 
-/// The monocular initialiser's state: the reference frame, and where its
-/// keypoints were last matched (ORB-SLAM3's `mvbPrevMatched`).
+/// Seconds of frames between the two views kept for localisation once the
+/// map exists (see [`super::between_views`]); older ones are dropped.
+const KEPT_BETWEEN_VIEWS_S: f64 = 2.0;
+/// Frames between the two views kept, at least.
+const MIN_KEPT_BETWEEN_VIEWS: usize = 10;
+
+/// The monocular initialiser's state: the reference frame, where its
+/// keypoints were last matched (ORB-SLAM3's `mvbPrevMatched`), and the
+/// frames offered since the reference that did not initialise.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct MonoInitialiser {
     reference: Option<Frame>,
     last_positions: Vec<(f32, f32)>,
+    between: Vec<Frame>,
 }
 
 impl MonoInitialiser {
@@ -62,6 +70,7 @@ impl MonoInitialiser {
         };
         if frame.len() <= MIN_MONO_INIT_KEYPOINTS {
             self.reference = None;
+            self.between.clear();
             return Ok(None);
         }
         let thresholds = frame.distance_thresholds;
@@ -89,6 +98,7 @@ impl MonoInitialiser {
         if matches.len() < MIN_MONO_INIT_MATCHES {
             // ORB-SLAM3 starts over from the next frame.
             self.reference = None;
+            self.between.clear();
             return Ok(None);
         }
         for m in &matches {
@@ -115,6 +125,7 @@ impl MonoInitialiser {
             Ok(r) => r,
             Err(why) => {
                 tracing::debug!(frame = frame.index, %why, "two views not reconstructed");
+                self.keep_between(frame, rig);
                 return Ok(None);
             }
         };
@@ -129,10 +140,33 @@ impl MonoInitialiser {
         let Some(reference) = self.reference.take() else {
             return Ok(None);
         };
-        build_initial_map(reference, frame, &matches, &reconstruction, map)
+        let built = build_initial_map(reference, frame, &matches, &reconstruction, map)?;
+        if built.is_none() {
+            // Too few points: ORB-SLAM3 starts over from the next frame.
+            self.between.clear();
+        }
+        Ok(built)
+    }
+
+    /// The frames offered since the reference that did not initialise,
+    /// oldest first (emptied: the caller localises them once the map
+    /// exists).
+    pub fn take_between(&mut self) -> Vec<Frame> {
+        std::mem::take(&mut self.between)
+    }
+
+    /// Keeps `frame` as one between the views, dropping the oldest beyond
+    /// [`KEPT_BETWEEN_VIEWS_S`] of frames.
+    fn keep_between(&mut self, frame: &Frame, rig: &CameraRig) {
+        let cap = ((KEPT_BETWEEN_VIEWS_S * rig.fps).ceil() as usize).max(MIN_KEPT_BETWEEN_VIEWS);
+        if self.between.len() >= cap {
+            self.between.remove(0);
+        }
+        self.between.push(frame.clone());
     }
 
     fn restart(&mut self, frame: &Frame) {
+        self.between.clear();
         if frame.len() > MIN_MONO_INIT_KEYPOINTS {
             self.last_positions = frame
                 .features

@@ -7,6 +7,7 @@ use std::time::Instant;
 use crate::map::{KeyFrameId, Map, MapPointId, SharedMap};
 use crate::optim::{LieGroup, Se3};
 
+use super::between_views::{localise_between_views, InitialView, LocalisedBetweenViews};
 use super::frame::Frame;
 use super::keyframe::{
     initialise_map, insert_keyframe, needs_keyframe, next_near_reference_count, KeyFrameContext,
@@ -53,6 +54,9 @@ pub enum TrackingMethod {
     MutualNearestNeighbours,
     /// Relocalisation against the keyframes.
     Relocalisation,
+    /// A frame between a monocular initialisation's two views, localised
+    /// in the map they made (after the fact).
+    BetweenInitialViews,
     /// No pose.
     None,
 }
@@ -73,6 +77,9 @@ pub struct TrackOutcome {
     /// A monocular initialisation also made a keyframe of an earlier frame
     /// (its index): that frame now has a pose.
     pub earlier_keyframe: Option<(usize, KeyFrameId)>,
+    /// The frames between a monocular initialisation's two views that
+    /// were localised in the new map (see [`super::between_views`]).
+    pub between_views: Vec<LocalisedBetweenViews>,
     /// A monocular keyframe was wanted while local mapping was busy: the
     /// caller interrupts mapping's local BA (ORB-SLAM3's `InterruptBA`), so
     /// its triangulation is done sooner (see the keyframe rule).
@@ -96,6 +103,9 @@ pub struct Tracker {
     last_relocalisation_frame: Option<usize>,
     /// Index of the first frame of the current loss.
     lost_since: Option<usize>,
+    /// Whether the map the current loss happened in was young (see
+    /// [`YOUNG_MAP_KEYFRAMES`]).
+    lost_in_young_map: bool,
     /// Whether relocalisation was tried during the current loss on a frame
     /// with keypoints enough to succeed (see [`Self::should_start_new_map`]).
     relocalisation_tried: bool,
@@ -191,6 +201,17 @@ impl Start {
 pub const RELOCALISATION_PATIENCE_S: f64 = 0.5;
 /// The patience in frames, at least.
 const MIN_PATIENCE_FRAMES: usize = 3;
+/// A map with at most this many keyframes is young: a loss in it gets one
+/// frame's patience. ORB-SLAM3's `Tracking::Track` waits in `RECENTLY_LOST`
+/// only when the map holds more than 10 keyframes
+/// (`pCurrentMap->KeyFramesInMap()>10`); a younger map goes straight to
+/// `LOST`, and the next frame resets it and starts over. A young map
+/// started on a blurred or dark frame holds few points, which the sharp
+/// frames after it rarely find again: the patience would only lose them.
+pub const YOUNG_MAP_KEYFRAMES: usize = 10;
+/// The patience in frames after a loss in a young map: the next frame
+/// tries the map once, then starts the new map itself.
+const YOUNG_MAP_PATIENCE_FRAMES: usize = 1;
 
 /// Inliers local-map tracking needs (ORB-SLAM3: 30, 50 just after relocalisation).
 const MIN_LOCAL_MAP_INLIERS: usize = 30;
@@ -209,6 +230,7 @@ impl Tracker {
             last_keyframe_frame: 0,
             last_relocalisation_frame: None,
             lost_since: None,
+            lost_in_young_map: false,
             relocalisation_tried: false,
             max_frames: rig.fps.round().max(1.0) as usize,
             relocalisation_candidates: None,
@@ -436,6 +458,7 @@ impl Tracker {
             self.velocity = None;
             if self.lost_since.is_none() {
                 self.lost_since = Some(frame.index);
+                self.lost_in_young_map = map.keyframe_count() <= YOUNG_MAP_KEYFRAMES;
                 self.relocalisation_tried = false;
             }
             let outcome = TrackOutcome {
@@ -445,6 +468,7 @@ impl Tracker {
                 new_keyframe: None,
                 relative_pose: None,
                 earlier_keyframe: None,
+                between_views: Vec::new(),
                 interrupt_mapping: false,
             };
             return Ok((None, outcome, KeyFrameDecision::default()));
@@ -502,6 +526,7 @@ impl Tracker {
             new_keyframe: None,
             relative_pose,
             earlier_keyframe: None,
+            between_views: Vec::new(),
             interrupt_mapping: false,
         };
         Ok((Some(frame), outcome, wants_keyframe))
@@ -545,15 +570,37 @@ impl Tracker {
                 .is_some_and(|since| index >= since + self.relocalisation_patience())
     }
 
-    /// Frames of failed relocalisation before a new map is started.
+    /// Frames of failed relocalisation before a new map is started: one
+    /// after a loss in a young map ([`YOUNG_MAP_KEYFRAMES`]), else
+    /// [`RELOCALISATION_PATIENCE_S`] of frames (at least 3).
     pub fn relocalisation_patience(&self) -> usize {
+        if self.lost_in_young_map {
+            return YOUNG_MAP_PATIENCE_FRAMES;
+        }
         ((RELOCALISATION_PATIENCE_S * self.rig.fps).ceil() as usize).max(MIN_PATIENCE_FRAMES)
     }
 
     fn initialise(&mut self, mut frame: Frame, map: &mut Map) -> Result<TrackOutcome, SlamError> {
+        let mut between_views = Vec::new();
         let (kf, earlier_keyframe) = if self.rig.sensor == Sensor::Monocular {
             match self.mono_init.offer(&mut frame, map, &self.rig)? {
-                Some(init) => (Some(init.second), Some((init.first_frame, init.first))),
+                Some(init) => {
+                    between_views = localise_between_views(
+                        self.mono_init.take_between(),
+                        InitialView {
+                            keyframe: init.first,
+                            index: init.first_frame,
+                        },
+                        InitialView {
+                            keyframe: init.second,
+                            index: frame.index,
+                        },
+                        map,
+                        &self.rig,
+                        MIN_LOCAL_MAP_INLIERS,
+                    )?;
+                    (Some(init.second), Some((init.first_frame, init.first)))
+                }
                 None => (None, None),
             }
         } else {
@@ -567,6 +614,7 @@ impl Tracker {
                 new_keyframe: None,
                 relative_pose: None,
                 earlier_keyframe: None,
+                between_views: Vec::new(),
                 interrupt_mapping: false,
             });
         };
@@ -584,6 +632,7 @@ impl Tracker {
             new_keyframe: Some((kf, created)),
             relative_pose,
             earlier_keyframe,
+            between_views,
             interrupt_mapping: false,
         })
     }
