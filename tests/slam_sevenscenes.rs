@@ -174,6 +174,11 @@ fn kitchen_monocular_localises_the_frames_between_its_initial_views() {
         "every frame between the views localised"
     );
     assert_eq!(tracked, frames.len(), "every frame has a pose from the map");
+    assert_eq!(
+        report["summary"]["between_initial_views"].as_u64(),
+        Some(between.len() as u64),
+        "the summary counts them"
+    );
 
     let ok = |r: Result<Trajectory, spslam::eval::EvalError>| r.unwrap_or_else(|e| panic!("{e}"));
     let estimate = ok(read_tum(&out.path().join("trajectory_tum.txt")));

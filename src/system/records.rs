@@ -136,6 +136,9 @@ pub struct SlamSummary {
     pub not_initialised: usize,
     /// Relocalisations.
     pub relocalisations: usize,
+    /// Of `tracked`: monocular frames between a two-view initialisation's
+    /// views, localised once the map existed.
+    pub between_initial_views: usize,
     /// Keyframes inserted.
     pub keyframes_inserted: usize,
     /// Live keyframes in all maps.
