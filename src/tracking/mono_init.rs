@@ -42,6 +42,9 @@ pub(crate) struct MonoInitialMap {
 const KEPT_BETWEEN_VIEWS_S: f64 = 2.0;
 /// Frames between the two views kept, at least.
 const MIN_KEPT_BETWEEN_VIEWS: usize = 10;
+/// Frames between the two views kept, at most (a fast camera's 2 s would
+/// hold hundreds of frames' descriptors).
+const MAX_KEPT_BETWEEN_VIEWS: usize = 60;
 
 /// The monocular initialiser's state: the reference frame, where its
 /// keypoints were last matched (ORB-SLAM3's `mvbPrevMatched`), and the
@@ -158,7 +161,8 @@ impl MonoInitialiser {
     /// Keeps `frame` as one between the views, dropping the oldest beyond
     /// [`KEPT_BETWEEN_VIEWS_S`] of frames.
     fn keep_between(&mut self, frame: &Frame, rig: &CameraRig) {
-        let cap = ((KEPT_BETWEEN_VIEWS_S * rig.fps).ceil() as usize).max(MIN_KEPT_BETWEEN_VIEWS);
+        let cap = ((KEPT_BETWEEN_VIEWS_S * rig.fps).ceil() as usize)
+            .clamp(MIN_KEPT_BETWEEN_VIEWS, MAX_KEPT_BETWEEN_VIEWS);
         if self.between.len() >= cap {
             self.between.remove(0);
         }
