@@ -229,12 +229,16 @@ fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
     let t = &s.mean_timings;
     let mut text = format!(
         "dataset {dataset}, extractor {extractor}\n\
-         frames {}: tracked {} ({} between the monocular initial views), lost {} (tracking failures and {} unreadable), before initialisation {}, relocalisations {}\n\
+         frames {}: tracked {}{}, lost {} (tracking failures and {} unreadable), before initialisation {}, relocalisations {}\n\
          keyframes inserted {}, live {}; map points {}\n\
          mean ms/frame: extraction {:.1}, stereo {:.1}, tracking {:.1}, mapping {:.1}\n",
         s.frames,
         s.tracked,
-        s.between_initial_views,
+        if s.between_initial_views > 0 {
+            format!(" ({} between the monocular initial views)", s.between_initial_views)
+        } else {
+            String::new()
+        },
         s.lost,
         s.unreadable,
         s.not_initialised,
