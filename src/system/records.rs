@@ -139,6 +139,9 @@ pub struct SlamSummary {
     /// Of `tracked`: monocular frames between a two-view initialisation's
     /// views, localised once the map existed.
     pub between_initial_views: usize,
+    /// Of `tracked`: frames lost when they came, localised once tracking
+    /// resumed (in a new map, or after a relocalisation).
+    pub localised_after_loss: usize,
     /// Keyframes inserted.
     pub keyframes_inserted: usize,
     /// Live keyframes in all maps.

@@ -16,8 +16,8 @@ use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
 use crate::tracking::{
-    Extractors, FrameBuilder, Frontend, LocalisedBetweenViews, SensorFeatures, SensorImages,
-    Tracker, TrackingMethod, TrackingState,
+    Extractors, FrameBuilder, Frontend, LateLocalisation, SensorFeatures, SensorImages, Tracker,
+    TrackingMethod, TrackingState,
 };
 
 use super::atlas::{Atlas, MapIndex};
@@ -429,7 +429,7 @@ impl SlamSystem {
             map = new_map,
             "tracking lost for good: new map"
         );
-        self.tracker = self.tracker.fresh();
+        self.tracker = self.tracker.fresh_after_loss();
         if threaded {
             self.spawn_mapping_thread()?;
         }
@@ -598,7 +598,10 @@ impl SlamSystem {
             self.record_earlier_keyframe(earlier, map_index, kf);
         }
         for localised in &outcome.between_views {
-            self.record_between_views(localised, map_index);
+            self.record_late(localised, map_index, TrackingMethod::BetweenInitialViews);
+        }
+        for localised in &outcome.after_loss {
+            self.record_late(localised, map_index, TrackingMethod::AfterLoss);
         }
         let mapping_ms = mapping.as_ref().map_or(0.0, |m| m.elapsed_ms);
         let untracked =
@@ -659,9 +662,10 @@ impl SlamSystem {
         }
     }
 
-    /// A frame between a monocular initialisation's two views was
-    /// localised in the new map: its record gets that pose.
-    fn record_between_views(&mut self, localised: &LocalisedBetweenViews, map: MapIndex) {
+    /// A frame was localised after the fact (between a monocular
+    /// initialisation's two views, or lost before tracking resumed) in
+    /// map `map`: its record gets that pose and `method`.
+    fn record_late(&mut self, localised: &LateLocalisation, map: MapIndex, method: TrackingMethod) {
         if let Some(record) = self
             .records
             .iter_mut()
@@ -669,7 +673,7 @@ impl SlamSystem {
             .find(|r| r.index == localised.index)
         {
             record.state = TrackingState::Ok;
-            record.method = TrackingMethod::BetweenInitialViews;
+            record.method = method;
             record.inliers = localised.inliers;
             record.map = map;
             record.relative_pose = Some(RelativePose {

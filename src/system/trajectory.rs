@@ -213,6 +213,7 @@ impl SlamSystem {
             s.unreadable += usize::from(r.unreadable.is_some());
             s.relocalisations += usize::from(r.method == TrackingMethod::Relocalisation);
             s.between_initial_views += usize::from(r.method == TrackingMethod::BetweenInitialViews);
+            s.localised_after_loss += usize::from(r.method == TrackingMethod::AfterLoss);
             s.keyframes_inserted += usize::from(r.keyframe);
             sum.extraction_ms += r.timings.extraction_ms;
             sum.stereo_ms += r.timings.stereo_ms;

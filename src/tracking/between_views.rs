@@ -22,6 +22,7 @@ use crate::map::{KeyFrameId, Map};
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
+use super::late::LateLocalisation;
 use super::motion::track_reference_keyframe;
 
 /// One view of the initialisation: its keyframe and input frame index.
@@ -31,19 +32,6 @@ pub(crate) struct InitialView {
     pub keyframe: KeyFrameId,
     /// Its index in the input.
     pub index: usize,
-}
-
-/// A frame between the two views that was localised.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LocalisedBetweenViews {
-    /// Its index in the input.
-    pub index: usize,
-    /// The keyframe its pose is relative to.
-    pub keyframe: KeyFrameId,
-    /// `T_c,kf`.
-    pub relative_pose: Se3,
-    /// Local-map inliers.
-    pub inliers: usize,
 }
 
 /// The pose a fraction `alpha` of the way from `first` to `second`
@@ -63,7 +51,7 @@ pub(crate) fn localise_between_views(
     map: &Map,
     rig: &CameraRig,
     min_inliers: usize,
-) -> Result<Vec<LocalisedBetweenViews>, SlamError> {
+) -> Result<Vec<LateLocalisation>, SlamError> {
     let first_pose = map
         .pose_cw_of(first.keyframe)
         .in_stage("frames between views")?;
@@ -94,7 +82,7 @@ pub(crate) fn localise_between_views(
         if inliers < min_inliers {
             continue;
         }
-        localised.push(LocalisedBetweenViews {
+        localised.push(LateLocalisation {
             index: frame.index,
             keyframe: nearer,
             relative_pose: frame.pose_cw.compose(&nearer_pose.inverse()),

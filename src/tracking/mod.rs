@@ -24,11 +24,13 @@
 //! (`crate::loop_closing::DatabaseRelocaliser`), else the newest
 //! [`MAX_SCANNED_KEYFRAMES`] keyframes.
 
+mod after_loss;
 mod between_views;
 mod frame;
 mod frontend;
 mod image_rotation;
 mod keyframe;
+mod late;
 mod local_map;
 mod mono_init;
 mod motion;
@@ -37,11 +39,12 @@ mod relocalise;
 mod search;
 mod tracker;
 
-pub use between_views::LocalisedBetweenViews;
+pub use after_loss::LOST_FRAMES_KEPT_S;
 pub use frame::Frame;
 pub use frontend::{Extractors, FrameBuilder, Frontend, SensorFeatures, SensorImages};
 pub use image_rotation::{estimate_rotation, ImageRotation, SmallBlurryImage};
 pub use keyframe::{MIN_INITIAL_KEYPOINTS, MIN_INITIAL_STEREO_POINTS};
+pub use late::LateLocalisation;
 pub use mono_init::{MIN_MONO_INIT_KEYPOINTS, MIN_MONO_INIT_MATCHES};
 pub use motion::MOTION_MODEL_RADIUS;
 pub(crate) use pose::refine_pose;

@@ -7,12 +7,14 @@ use std::time::Instant;
 use crate::map::{KeyFrameId, Map, MapPointId, SharedMap};
 use crate::optim::{LieGroup, Se3};
 
-use super::between_views::{localise_between_views, InitialView, LocalisedBetweenViews};
+use super::after_loss::{localise_lost_frames, lost_frames_kept, Resumption};
+use super::between_views::{localise_between_views, InitialView};
 use super::frame::Frame;
 use super::keyframe::{
     initialise_map, insert_keyframe, needs_keyframe, next_near_reference_count, KeyFrameContext,
     KeyFrameDecision,
 };
+use super::late::LateLocalisation;
 use super::local_map::track_local_map;
 use super::mono_init::MonoInitialiser;
 use super::motion::{
@@ -57,6 +59,10 @@ pub enum TrackingMethod {
     /// A frame between a monocular initialisation's two views, localised
     /// in the map they made (after the fact).
     BetweenInitialViews,
+    /// A frame lost, localised after the fact once tracking resumed (in a
+    /// new map, or in the old one after a relocalisation; see
+    /// [`super::after_loss`]).
+    AfterLoss,
     /// No pose.
     None,
 }
@@ -79,7 +85,10 @@ pub struct TrackOutcome {
     pub earlier_keyframe: Option<(usize, KeyFrameId)>,
     /// The frames between a monocular initialisation's two views that
     /// were localised in the new map (see [`super::between_views`]).
-    pub between_views: Vec<LocalisedBetweenViews>,
+    pub between_views: Vec<LateLocalisation>,
+    /// The frames lost before this one that were localised once tracking
+    /// resumed with it (see [`super::after_loss`]).
+    pub after_loss: Vec<LateLocalisation>,
     /// A monocular keyframe was wanted while local mapping was busy: the
     /// caller interrupts mapping's local BA (ORB-SLAM3's `InterruptBA`), so
     /// its triangulation is done sooner (see the keyframe rule).
@@ -116,6 +125,10 @@ pub struct Tracker {
     localisation_only: bool,
     /// The monocular initialiser's reference frame (monocular only).
     mono_init: MonoInitialiser,
+    /// The newest frames of the current loss (and of a new map's wait for
+    /// its first frame), oldest first: localised once tracking resumes
+    /// (see [`super::after_loss`]).
+    lost_frames: Vec<Frame>,
     /// Milliseconds the last `track` waited for the map's locks.
     lock_wait_ms: f64,
 }
@@ -237,6 +250,7 @@ impl Tracker {
             localisation_only: false,
             lock_wait_ms: 0.0,
             mono_init: MonoInitialiser::default(),
+            lost_frames: Vec::new(),
         }
     }
 
@@ -266,6 +280,40 @@ impl Tracker {
         tracker.relocalisation_candidates = self.relocalisation_candidates.clone();
         tracker.localisation_only = self.localisation_only;
         tracker
+    }
+
+    /// A fresh tracker (see [`Self::fresh`]) for the new map started after
+    /// a loss: it keeps the frames of the loss, which the new map's first
+    /// keyframe localises (see [`super::after_loss`]).
+    pub fn fresh_after_loss(&mut self) -> Self {
+        let mut tracker = self.fresh();
+        tracker.lost_frames = std::mem::take(&mut self.lost_frames);
+        tracker
+    }
+
+    /// Keeps a frame that could not be tracked, dropping the oldest kept
+    /// beyond [`lost_frames_kept`].
+    fn keep_lost(&mut self, frame: Frame) {
+        self.lost_frames.push(frame);
+        let excess = self
+            .lost_frames
+            .len()
+            .saturating_sub(lost_frames_kept(self.rig.fps));
+        self.lost_frames.drain(..excess);
+    }
+
+    /// Localises the kept lost frames now that tracking resumed at
+    /// `resumed`; the map is only read.
+    fn localise_lost(
+        &mut self,
+        resumed: Resumption,
+        map: &Map,
+    ) -> Result<Vec<LateLocalisation>, SlamError> {
+        let frames = std::mem::take(&mut self.lost_frames);
+        if frames.is_empty() {
+            return Ok(Vec::new());
+        }
+        localise_lost_frames(frames, resumed, map, &self.rig, MIN_RELOCALISATION_INLIERS)
     }
 
     /// Where relocalisation gets the keyframes it tries: `Some(source)`
@@ -469,8 +517,10 @@ impl Tracker {
                 relative_pose: None,
                 earlier_keyframe: None,
                 between_views: Vec::new(),
+                after_loss: Vec::new(),
                 interrupt_mapping: false,
             };
+            self.keep_lost(frame);
             return Ok((None, outcome, KeyFrameDecision::default()));
         }
         self.lost_since = None;
@@ -519,6 +569,20 @@ impl Tracker {
         };
         self.near_reference_count = near_reference_count;
         let relative_pose = self.relative_to_reference(&frame, map)?;
+        let after_loss = match frame.reference_keyframe {
+            Some(keyframe) if method == TrackingMethod::Relocalisation => {
+                let resumed = Resumption {
+                    keyframe,
+                    index: frame.index,
+                    pose_cw: frame.pose_cw,
+                };
+                self.localise_lost(resumed, map)?
+            }
+            _ => {
+                self.lost_frames.clear();
+                Vec::new()
+            }
+        };
         let outcome = TrackOutcome {
             state: self.state,
             method,
@@ -527,6 +591,7 @@ impl Tracker {
             relative_pose,
             earlier_keyframe: None,
             between_views: Vec::new(),
+            after_loss,
             interrupt_mapping: false,
         };
         Ok((Some(frame), outcome, wants_keyframe))
@@ -607,6 +672,10 @@ impl Tracker {
             (initialise_map(&mut frame, map, &self.rig)?, None)
         };
         let Some(kf) = kf else {
+            if self.rig.sensor != Sensor::Monocular {
+                // The monocular initialiser keeps its own frames.
+                self.keep_lost(frame);
+            }
             return Ok(TrackOutcome {
                 state: TrackingState::NotInitialised,
                 method: TrackingMethod::None,
@@ -615,9 +684,24 @@ impl Tracker {
                 relative_pose: None,
                 earlier_keyframe: None,
                 between_views: Vec::new(),
+                after_loss: Vec::new(),
                 interrupt_mapping: false,
             });
         };
+        // The frames lost before the map's first view, localised in it.
+        let resumed = match earlier_keyframe {
+            Some((index, first)) => Resumption {
+                keyframe: first,
+                index,
+                pose_cw: map.pose_cw_of(first).in_stage("initialisation")?,
+            },
+            None => Resumption {
+                keyframe: kf,
+                index: frame.index,
+                pose_cw: frame.pose_cw,
+            },
+        };
+        let after_loss = self.localise_lost(resumed, map)?;
         self.state = TrackingState::Ok;
         self.reference = Some(kf);
         self.last_keyframe_frame = frame.index;
@@ -633,6 +717,7 @@ impl Tracker {
             relative_pose,
             earlier_keyframe,
             between_views,
+            after_loss,
             interrupt_mapping: false,
         })
     }

@@ -224,6 +224,26 @@ fn merges_text(merges: &[MergeRecord]) -> String {
     text
 }
 
+/// The tracked frames that were localised after the fact, in brackets
+/// (empty when there are none).
+fn localised_late_text(s: &SlamSummary) -> String {
+    let mut parts = Vec::new();
+    if s.between_initial_views > 0 {
+        parts.push(format!(
+            "{} between the monocular initial views",
+            s.between_initial_views
+        ));
+    }
+    if s.localised_after_loss > 0 {
+        parts.push(format!("{} localised after a loss", s.localised_after_loss));
+    }
+    if parts.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", parts.join(", "))
+    }
+}
+
 /// The totals, the mean timings and one line per atlas map.
 fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
     let t = &s.mean_timings;
@@ -234,11 +254,7 @@ fn summary_text(dataset: &str, extractor: &str, s: &SlamSummary) -> String {
          mean ms/frame: extraction {:.1}, stereo {:.1}, tracking {:.1}, mapping {:.1}\n",
         s.frames,
         s.tracked,
-        if s.between_initial_views > 0 {
-            format!(" ({} between the monocular initial views)", s.between_initial_views)
-        } else {
-            String::new()
-        },
+        localised_late_text(s),
         s.lost,
         s.unreadable,
         s.not_initialised,
