@@ -70,17 +70,33 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
             r.index
         );
     }
-    // Anchoring: the lost frames and the new map's first pose carry on the
-    // last tracked frame's velocity (frames 38 → 39, 0.1 s apart) for up to
-    // GAP_HORIZON_S, each step turned by the rotation the frame's images
-    // measured from the frame before where they gave one:
-    // T_wc(k) = T_wc(k−1) · (R_k, t), with exp(twist · 0.1) = (R_v, t) and
-    // R_k the measured R_pc, else R_v.
+    // The frames lost while relocalisation was tried saw the new place:
+    // once the new map's first keyframe exists, each is localised in it
+    // after the fact, so the new map's first pose is the first lost frame.
+    let lost: Vec<_> = records[kidnap..second]
+        .iter()
+        .map(|r| (r.index, r.map, r.state, r.method))
+        .collect();
+    eprintln!("the frames of the loss now: {lost:?}");
+    for r in &records[kidnap..second] {
+        assert_eq!(
+            (r.map, r.state, r.method),
+            (1, TrackingState::Ok, TrackingMethod::AfterLoss),
+            "frame {}",
+            r.index
+        );
+    }
+    assert_eq!(summary.localised_after_loss, second - kidnap);
+    // Anchoring: the new map's first pose carries on the last tracked
+    // frame's velocity (frames 38 → 39, 0.1 s apart), the step turned by
+    // the rotation the frame's images measured from the frame before
+    // where they gave one: T_wc(40) = T_wc(39) · (R, t), with
+    // exp(twist · 0.1) = (R_v, t) and R the measured R_pc, else R_v.
     assert_eq!(summary.maps[1].anchored_at_frame, Some(kidnap - 1));
     let last = trajectory[kidnap - 1].1;
     let twist = trajectory[kidnap - 2].1.inverse().compose(&last).log() / 0.1;
     let mut expected = last;
-    for (k, (_, row)) in trajectory.iter().enumerate().take(second + 1).skip(kidnap) {
+    for (k, (_, row)) in trajectory.iter().enumerate().take(kidnap + 1).skip(kidnap) {
         let within = |j: usize| ((j - (kidnap - 1)) as f64 * 0.1).min(GAP_HORIZON_S);
         let step = Se3::exp(&(twist * (within(k) - within(k - 1))));
         let rotation = records[k]
@@ -91,14 +107,28 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
         assert!(off < 1e-9, "frame {k}: off the carried-on pose by {off}");
     }
     // In the new map the motion is right: the relative pose from its first
-    // frame to the last matches the ground truth within 2 % of the distance.
+    // frame (localised after the fact) to the last matches the ground
+    // truth within 2 % of the distance, and each late frame's motion to
+    // the first keyframe within 6 % of its length: matched against that
+    // one keyframe's stereo points, the error grows with the distance
+    // (measured 0.9, 0.7, 1.5, 2.2 and 4.8 % at 1 to 5 m).
     let final_frame = inputs.len() - 1;
     let truth = |k: usize| Se3::from_isometry(&sequence.pose(inputs[k]));
-    let estimated = trajectory[second]
+    let mut errors = Vec::new();
+    for k in kidnap..second {
+        let estimated = trajectory[k].1.inverse().compose(&trajectory[second].1);
+        let expected = truth(k).inverse().compose(&truth(second));
+        let error = (estimated.translation - expected.translation).norm();
+        let moved = expected.translation.norm();
+        eprintln!("frame {k}: {moved:.3} m to the first keyframe, off by {error:.4} m");
+        errors.push(error / moved);
+    }
+    assert!(errors.iter().all(|e| *e < 0.06), "{errors:?}");
+    let estimated = trajectory[kidnap]
         .1
         .inverse()
         .compose(&trajectory[final_frame].1);
-    let expected = truth(second).inverse().compose(&truth(final_frame));
+    let expected = truth(kidnap).inverse().compose(&truth(final_frame));
     let distance = expected.translation.norm();
     let error = (estimated.translation - expected.translation).norm();
     eprintln!("new map: {distance:.1} m travelled, relative error {error:.3} m");
@@ -131,7 +161,15 @@ fn a_camera_kidnapped_from_a_young_map_starts_the_new_map_on_the_next_frame() {
     );
     assert!(keyframes_before <= YOUNG_MAP_KEYFRAMES);
     assert_eq!(maps.len(), 2, "a second map after the kidnapping");
-    assert_eq!(records[kidnap].state, TrackingState::Lost);
+    // Lost when it came; localised in the new map once that started.
+    assert_eq!(
+        (
+            records[kidnap].map,
+            records[kidnap].state,
+            records[kidnap].method
+        ),
+        (1, TrackingState::Ok, TrackingMethod::AfterLoss)
+    );
     assert_eq!(
         maps[1].first_frame,
         kidnap + 1,
