@@ -108,10 +108,10 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
     }
     // In the new map the motion is right: the relative pose from its first
     // frame (localised after the fact) to the last matches the ground
-    // truth within 2 % of the distance, and each late frame's motion to
-    // the first keyframe within 6 % of its length: matched against that
-    // one keyframe's stereo points, the error grows with the distance
-    // (measured 0.9, 0.7, 1.5, 2.2 and 4.8 % at 1 to 5 m).
+    // truth within 2 % of the distance, and so does each late frame's
+    // motion to the first keyframe (measured 1.0, 1.0, 1.0, 0.6 and 0.7 %
+    // at 1 to 5 m; matched against that keyframe's points alone, before
+    // the local map refined them, 0.9 to 4.8 %).
     let final_frame = inputs.len() - 1;
     let truth = |k: usize| Se3::from_isometry(&sequence.pose(inputs[k]));
     let mut errors = Vec::new();
@@ -123,7 +123,7 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
         eprintln!("frame {k}: {moved:.3} m to the first keyframe, off by {error:.4} m");
         errors.push(error / moved);
     }
-    assert!(errors.iter().all(|e| *e < 0.06), "{errors:?}");
+    assert!(errors.iter().all(|e| *e < 0.02), "{errors:?}");
     let estimated = trajectory[kidnap]
         .1
         .inverse()
@@ -432,4 +432,62 @@ fn tracking_goes_on_while_local_ba_is_solved_and_queued_stereo_keyframes_let_it_
     assert!(solved > 0, "no local BA was solved");
     let lost: Vec<usize> = common::untracked(slam.records());
     assert!(lost.is_empty(), "lost frames {lost:?}");
+}
+
+#[test]
+fn the_frame_lost_at_a_jump_back_is_localised_once_the_next_frame_relocalises() {
+    // Round the block's first corner for 45 frames, then the camera jumps
+    // back to where it was at frame 18, before the corner, and drives on. The first frame
+    // there is lost (the motion model predicts the street ahead); the next one
+    // relocalises in the map; the lost frame, kept, is then matched
+    // against the keyframe the relocalisation found and gets its pose
+    // after the fact, in the same map, against the ground truth.
+    let sequence = small_sequence(SceneName::Loop, 232);
+    let mut slam = orb_slam(&sequence);
+    let jump = 45;
+    let inputs: Vec<usize> = (0..jump).chain(18..40).collect();
+    for (k, &i) in inputs.iter().enumerate() {
+        let (_, l, r) = images(&sequence, i);
+        ok(slam.process(k, k as f64 * 0.1, l.view(), r.view()));
+    }
+    ok(slam.finish());
+    let records = slam.records();
+    let summary = ok(slam.summary());
+    let methods: Vec<_> = records[jump - 1..jump + 3]
+        .iter()
+        .map(|r| (r.index, r.map, r.state, r.method))
+        .collect();
+    eprintln!("around the jump: {methods:?}");
+    assert_eq!(slam.atlas().maps().len(), 1, "no second map");
+    assert_eq!(
+        (records[jump].state, records[jump].method, records[jump].map),
+        (TrackingState::Ok, TrackingMethod::AfterLoss, 0)
+    );
+    assert_eq!(records[jump + 1].method, TrackingMethod::Relocalisation);
+    assert_eq!(summary.localised_after_loss, 1);
+    let trajectory = ok(slam.trajectory());
+    let truth = |k: usize| Se3::from_isometry(&sequence.pose(inputs[k]));
+    // The late pose against the truth relative to frame 0, beside the
+    // pose tracked live at the same place on the way out (frame 18).
+    let relative =
+        |poses: &dyn Fn(usize) -> Se3, k: usize| poses(0).inverse().compose(&poses(k)).translation;
+    let off = |k: usize| (relative(&|j| trajectory[j].1, k) - relative(&truth, k)).norm();
+    for k in [18, 19, 20, jump, jump + 1, jump + 2] {
+        eprintln!("frame {k} (place {}): off by {:.4} m", inputs[k], off(k));
+    }
+    // Where the map itself puts that place (frame 18, tracked live on the
+    // way out) is the best the late pose can do: measured 0.110 m off the
+    // truth against frame 18's 0.107 m, the two estimates 0.039 m apart
+    // (matched against the relocalised keyframe alone, before the local
+    // map refined it: 0.260 m off the truth). Bounds: 0.06 m from frame
+    // 18's estimate, and no more than 0.02 m further off the truth.
+    let same_place = trajectory[18]
+        .1
+        .inverse()
+        .compose(&trajectory[jump].1)
+        .translation
+        .norm();
+    eprintln!("the late pose and frame 18's are {same_place:.4} m apart");
+    assert!(same_place < 0.06, "{same_place} m from frame 18's pose");
+    assert!(off(jump) < off(18) + 0.02, "{} m off", off(jump));
 }

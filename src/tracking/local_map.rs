@@ -62,19 +62,32 @@ pub(crate) struct LocalMapOutcome {
     pub visible_points: usize,
 }
 
+/// Whether local-map tracking counts the points it predicts visible and
+/// finds (`visible`, `found`: local mapping's culling judges points by
+/// them, ORB-SLAM3's `IncreaseVisible` / `IncreaseFound`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum PointCounting {
+    /// A frame tracked live: its views count.
+    Count,
+    /// A frame localised after the fact: the map is only read.
+    ReadOnly,
+}
+
 /// Tracks the local map. `recently_relocalised` widens the search as ORB-SLAM3 does.
 pub(crate) fn track_local_map(
     frame: &mut Frame,
     map: &Map,
     rig: &CameraRig,
     recently_relocalised: bool,
+    counting: PointCounting,
 ) -> Result<LocalMapOutcome, SlamError> {
+    let count = counting == PointCounting::Count;
     let (keyframes, reference) = local_keyframes(frame, map);
     if let Some(reference) = reference {
         frame.reference_keyframe = Some(reference);
     }
     let matched: BTreeSet<MapPointId> = frame.map_points.iter().flatten().copied().collect();
-    for id in &matched {
+    for id in matched.iter().filter(|_| count) {
         if let Ok(p) = map.map_point(*id) {
             p.visible.increment();
         }
@@ -92,7 +105,7 @@ pub(crate) fn track_local_map(
             }
         }
     }
-    for v in &visible {
+    for v in visible.iter().filter(|_| count) {
         if let Ok(p) = map.map_point(v.id) {
             p.visible.increment();
         }
@@ -103,7 +116,7 @@ pub(crate) fn track_local_map(
     match_projected(frame, map, &frontal, 2.5 * th, (1, 0), Some(0.8))?;
     match_projected(frame, map, &oblique, 4.0 * th, (1, 0), Some(0.8))?;
     let inliers = refine_pose(frame, map, rig)?;
-    for id in frame.map_points.iter().flatten() {
+    for id in frame.map_points.iter().flatten().filter(|_| count) {
         if let Ok(p) = map.map_point(*id) {
             p.found.increment();
         }

@@ -15,7 +15,7 @@ use super::keyframe::{
     KeyFrameDecision,
 };
 use super::late::LateLocalisation;
-use super::local_map::track_local_map;
+use super::local_map::{track_local_map, PointCounting};
 use super::mono_init::MonoInitialiser;
 use super::motion::{
     image_rotation_velocity, track_last_frame, track_last_frame_unratioed,
@@ -313,7 +313,7 @@ impl Tracker {
         if frames.is_empty() {
             return Ok(Vec::new());
         }
-        localise_lost_frames(frames, resumed, map, &self.rig, MIN_RELOCALISATION_INLIERS)
+        localise_lost_frames(frames, resumed, map, &self.rig, MIN_LOCAL_MAP_INLIERS)
     }
 
     /// Where relocalisation gets the keyframes it tries: `Some(source)`
@@ -730,7 +730,13 @@ impl Tracker {
         recently_relocalised: bool,
     ) -> Result<usize, SlamError> {
         frame.reference_keyframe = self.reference;
-        let outcome = track_local_map(frame, map, &self.rig, recently_relocalised)?;
+        let outcome = track_local_map(
+            frame,
+            map,
+            &self.rig,
+            recently_relocalised,
+            PointCounting::Count,
+        )?;
         tracing::debug!(
             frame = frame.index,
             inliers = outcome.inliers,
