@@ -26,12 +26,11 @@
 use crate::camera::CameraRig;
 use crate::error::{MapContext, SlamError};
 use crate::map::{KeyFrameId, Map};
-use crate::optim::{LieGroup, Se3};
+use crate::optim::Se3;
 
 use super::frame::Frame;
-use super::late::LateLocalisation;
+use super::late::{match_kept_frame, LateLocalisation};
 use super::local_map::{track_local_map, PointCounting};
-use super::motion::track_reference_keyframe;
 
 /// Seconds of lost frames kept for localisation once tracking resumes
 /// (at least [`MIN_LOST_FRAMES_KEPT`], at most [`MAX_LOST_FRAMES_KEPT`]
@@ -79,9 +78,7 @@ pub(crate) fn localise_lost_frames(
     let mut prior = resumed.pose_cw;
     let mut localised = Vec::new();
     for mut frame in frames {
-        frame.map_points.iter_mut().for_each(|slot| *slot = None);
-        frame.reference_keyframe = Some(resumed.keyframe);
-        if !track_reference_keyframe(&mut frame, &prior, resumed.keyframe, map, rig)? {
+        if !match_kept_frame(&mut frame, &prior, resumed.keyframe, map, rig)? {
             tracing::debug!(frame = frame.index, "after a loss: too few matches");
             continue;
         }
@@ -94,12 +91,12 @@ pub(crate) fn localise_lost_frames(
             continue;
         }
         prior = frame.pose_cw;
-        localised.push(LateLocalisation {
-            index: frame.index,
-            keyframe: resumed.keyframe,
-            relative_pose: frame.pose_cw.compose(&keyframe_pose.inverse()),
+        localised.push(LateLocalisation::of(
+            &frame,
+            resumed.keyframe,
+            &keyframe_pose,
             inliers,
-        });
+        ));
     }
     localised.sort_by_key(|l| l.index);
     Ok(localised)

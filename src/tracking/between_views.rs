@@ -22,8 +22,7 @@ use crate::map::{KeyFrameId, Map};
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
-use super::late::LateLocalisation;
-use super::motion::track_reference_keyframe;
+use super::late::{match_kept_frame, LateLocalisation};
 
 /// One view of the initialisation: its keyframe and input frame index.
 #[derive(Debug, Clone, Copy)]
@@ -71,9 +70,7 @@ pub(crate) fn localise_between_views(
         } else {
             (second.keyframe, second_pose)
         };
-        frame.map_points.iter_mut().for_each(|slot| *slot = None);
-        frame.reference_keyframe = Some(nearer);
-        if !track_reference_keyframe(&mut frame, &prior, nearer, map, rig)? {
+        if !match_kept_frame(&mut frame, &prior, nearer, map, rig)? {
             tracing::debug!(frame = frame.index, "between views: too few matches");
             continue;
         }
@@ -82,12 +79,7 @@ pub(crate) fn localise_between_views(
         if inliers < min_inliers {
             continue;
         }
-        localised.push(LateLocalisation {
-            index: frame.index,
-            keyframe: nearer,
-            relative_pose: frame.pose_cw.compose(&nearer_pose.inverse()),
-            inliers,
-        });
+        localised.push(LateLocalisation::of(&frame, nearer, &nearer_pose, inliers));
     }
     localised.sort_by_key(|l| l.index);
     Ok(localised)
