@@ -11,16 +11,25 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use common::synthetic_slam::{images, orb_slam, small_sequence};
-use spslam::dataset::synthetic::SceneName;
+use spslam::dataset::synthetic::{SceneName, SyntheticSequence};
 use spslam::features::GrayImage;
 use spslam::optim::{LieGroup, Se3};
-use spslam::system::GAP_HORIZON_S;
+use spslam::system::{SlamSystem, GAP_HORIZON_S};
 use spslam::tracking::{
     TrackingMethod, TrackingState, RELOCALISATION_PATIENCE_S, YOUNG_MAP_KEYFRAMES,
 };
 
 fn ok<T, E: std::fmt::Display>(r: Result<T, E>) -> T {
     r.unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Feeds the sequence's frames `inputs` in that order, as input frames
+/// 0, 1, … at 10 fps (a kidnap or a jump is a jump in `inputs`).
+fn process_inputs(slam: &mut SlamSystem, sequence: &SyntheticSequence, inputs: &[usize]) {
+    for (k, &i) in inputs.iter().enumerate() {
+        let (_, l, r) = images(sequence, i);
+        ok(slam.process(k, k as f64 * 0.1, l.view(), r.view()));
+    }
 }
 
 #[test]
@@ -31,10 +40,7 @@ fn a_kidnapped_camera_resumes_in_a_new_map_and_no_frame_is_dropped() {
     // way round the block and goes on from there.
     let inputs: Vec<usize> = (0..40).chain(160..200).collect();
     let kidnap = 40;
-    for (k, &i) in inputs.iter().enumerate() {
-        let (_, l, r) = images(&sequence, i);
-        ok(slam.process(k, k as f64 * 0.1, l.view(), r.view()));
-    }
+    process_inputs(&mut slam, &sequence, &inputs);
     ok(slam.finish());
     let records = slam.records();
     let trajectory = ok(slam.trajectory());
@@ -147,10 +153,7 @@ fn a_camera_kidnapped_from_a_young_map_starts_the_new_map_on_the_next_frame() {
     let mut slam = orb_slam(&sequence);
     let kidnap = 8;
     let inputs: Vec<usize> = (0..kidnap).chain(160..200).collect();
-    for (k, &i) in inputs.iter().enumerate() {
-        let (_, l, r) = images(&sequence, i);
-        ok(slam.process(k, k as f64 * 0.1, l.view(), r.view()));
-    }
+    process_inputs(&mut slam, &sequence, &inputs);
     ok(slam.finish());
     let records = slam.records();
     let maps = slam.atlas().maps();
@@ -437,19 +440,17 @@ fn tracking_goes_on_while_local_ba_is_solved_and_queued_stereo_keyframes_let_it_
 #[test]
 fn the_frame_lost_at_a_jump_back_is_localised_once_the_next_frame_relocalises() {
     // Round the block's first corner for 45 frames, then the camera jumps
-    // back to where it was at frame 18, before the corner, and drives on. The first frame
-    // there is lost (the motion model predicts the street ahead); the next one
-    // relocalises in the map; the lost frame, kept, is then matched
-    // against the keyframe the relocalisation found and gets its pose
-    // after the fact, in the same map, against the ground truth.
+    // back to where it was at frame 18, before the corner, and drives on.
+    // The first frame there is lost (the motion model predicts the street
+    // ahead); the next one relocalises in the map; the lost frame, kept,
+    // is then matched against the keyframe the relocalisation found and
+    // gets its pose after the fact, in the same map, against the ground
+    // truth.
     let sequence = small_sequence(SceneName::Loop, 232);
     let mut slam = orb_slam(&sequence);
     let jump = 45;
     let inputs: Vec<usize> = (0..jump).chain(18..40).collect();
-    for (k, &i) in inputs.iter().enumerate() {
-        let (_, l, r) = images(&sequence, i);
-        ok(slam.process(k, k as f64 * 0.1, l.view(), r.view()));
-    }
+    process_inputs(&mut slam, &sequence, &inputs);
     ok(slam.finish());
     let records = slam.records();
     let summary = ok(slam.summary());
