@@ -142,6 +142,9 @@ pub struct SlamSummary {
     /// Of `tracked`: frames lost when they came, localised once tracking
     /// resumed (in a new map, or after a relocalisation).
     pub localised_after_loss: usize,
+    /// Of `tracked`: frames lost by tracking's rule whose pose a second
+    /// start corroborated (tracking itself stayed lost).
+    pub corroborated: usize,
     /// Keyframes inserted.
     pub keyframes_inserted: usize,
     /// Live keyframes in all maps.

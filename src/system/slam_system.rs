@@ -611,7 +611,13 @@ impl SlamSystem {
             index,
             timestamp,
             map: map_index,
-            state: outcome.state,
+            // A lost frame with a corroborated pose has a pose: its record
+            // says so.
+            state: if outcome.method == TrackingMethod::Corroborated {
+                TrackingState::Ok
+            } else {
+                outcome.state
+            },
             method: outcome.method,
             inliers: outcome.inliers,
             stereo_points,

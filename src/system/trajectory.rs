@@ -214,6 +214,7 @@ impl SlamSystem {
             s.relocalisations += usize::from(r.method == TrackingMethod::Relocalisation);
             s.between_initial_views += usize::from(r.method == TrackingMethod::BetweenInitialViews);
             s.localised_after_loss += usize::from(r.method == TrackingMethod::AfterLoss);
+            s.corroborated += usize::from(r.method == TrackingMethod::Corroborated);
             s.keyframes_inserted += usize::from(r.keyframe);
             sum.extraction_ms += r.timings.extraction_ms;
             sum.stereo_ms += r.timings.stereo_ms;

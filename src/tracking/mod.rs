@@ -26,6 +26,7 @@
 
 mod after_loss;
 mod between_views;
+mod corroborate;
 mod frame;
 mod frontend;
 mod image_rotation;

@@ -466,3 +466,58 @@ fn relocalisation_fails_where_the_map_was_never_seen() {
     )));
     assert_eq!(frame.tracked_count(), 0);
 }
+
+#[test]
+fn a_lost_frames_pose_is_corroborated_only_by_another_start_landing_on_it() {
+    use super::corroborate::{corroborated, StartPose};
+    use super::TrackingMethod::{ImageRotation, ReferenceKeyFrame, Relocalisation};
+    let world = PointWorld::new(5, 1500, (15.0, 5.0, 4.0, 35.0));
+    let (map, _) = world.keyframe_chain(5);
+    let truth = pose_at(Vector3::new(0.35, -0.1, 1.3), 4f64.to_radians());
+    let (mut frame, _) = world.frame(50, &truth, true);
+    assert!(ok(relocalise_with(
+        &mut frame, &map, &world.rig, None, None
+    )));
+    frame.pose_cw = truth;
+    let start = |method, pose_cw, inliers| StartPose {
+        method,
+        pose_cw,
+        inliers,
+    };
+    // A second start 1 cm and 0.05° away lands on the same pose; one 0.4 m
+    // and 1.7° away (the kidnapped camera's two starts) does not.
+    let near = pose_at(Vector3::new(0.01, 0.0, 0.0), 0.05f64.to_radians()).compose(&truth);
+    let far = pose_at(Vector3::new(0.4, 0.0, 0.0), 1.7f64.to_radians()).compose(&truth);
+    let judge = |method, inliers, starts: &[StartPose]| {
+        corroborated(&frame, method, inliers, starts, &map, &world.rig)
+    };
+    assert!(judge(
+        ImageRotation,
+        48,
+        &[start(ReferenceKeyFrame, near, 24)]
+    ));
+    assert!(!judge(
+        ImageRotation,
+        48,
+        &[start(ReferenceKeyFrame, far, 24)]
+    ));
+    // The pose needs local-map tracking's 30 inliers, the other start a
+    // pose's 10; a start is not its own witness; a relocalisation's pose
+    // is judged by relocalisation's own rule.
+    assert!(!judge(
+        ImageRotation,
+        29,
+        &[start(ReferenceKeyFrame, near, 24)]
+    ));
+    assert!(!judge(
+        ImageRotation,
+        48,
+        &[start(ReferenceKeyFrame, near, 9)]
+    ));
+    assert!(!judge(ImageRotation, 48, &[start(ImageRotation, near, 48)]));
+    assert!(!judge(
+        Relocalisation,
+        48,
+        &[start(ReferenceKeyFrame, near, 24)]
+    ));
+}

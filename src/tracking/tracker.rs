@@ -9,6 +9,7 @@ use crate::optim::{LieGroup, Se3};
 
 use super::after_loss::{localise_lost_frames, lost_frames_kept, Resumption};
 use super::between_views::{localise_between_views, InitialView};
+use super::corroborate::{corroborated, StartPose};
 use super::frame::Frame;
 use super::keyframe::{
     initialise_map, insert_keyframe, needs_keyframe, next_near_reference_count, KeyFrameContext,
@@ -63,6 +64,10 @@ pub enum TrackingMethod {
     /// new map, or in the old one after a relocalisation; see
     /// [`super::after_loss`]).
     AfterLoss,
+    /// A frame lost by tracking's rule whose pose a second start
+    /// corroborated (see [`super::corroborate`]): its record has the pose
+    /// and says `Ok`; tracking stays lost and the map is not changed.
+    Corroborated,
     /// No pose.
     None,
 }
@@ -227,7 +232,7 @@ pub const YOUNG_MAP_KEYFRAMES: usize = 10;
 const YOUNG_MAP_PATIENCE_FRAMES: usize = 1;
 
 /// Inliers local-map tracking needs (ORB-SLAM3: 30, 50 just after relocalisation).
-const MIN_LOCAL_MAP_INLIERS: usize = 30;
+pub(crate) const MIN_LOCAL_MAP_INLIERS: usize = 30;
 
 impl Tracker {
     /// A tracker for `rig`, not yet initialised.
@@ -430,6 +435,7 @@ impl Tracker {
             (TrackingMethod::None, false, None)
         };
         let mut inliers = 0;
+        let mut corroborated_pose = None;
         if method != TrackingMethod::None {
             // A pose found away from the motion model's prediction (by a
             // relocalisation, or around the rotation the images show) needs
@@ -447,19 +453,25 @@ impl Tracker {
                 }
             };
             inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
+            // Every start's pose, for a lost frame's corroboration.
+            let mut starts = vec![StartPose {
+                method,
+                pose_cw: frame.pose_cw,
+                inliers,
+            }];
             // Another start, scored against the current pose by the inliers
             // each start needs.
             let this = &*self;
-            let try_start = |frame: &mut Frame, alternative: &Start, method, inliers| {
+            let mut try_start = |frame: &mut Frame, alternative: &Start, method, inliers| {
                 let current = LocalMapScore::new(inliers, needed_for(method));
                 let needed = needed_for(alternative.method());
                 this.try_instead(
                     frame,
                     map,
                     alternative,
-                    current,
-                    needed,
+                    (current, needed),
                     recently_relocalised,
+                    &mut starts,
                 )
             };
             if method == TrackingMethod::MotionModel && (inliers < needed_for(method) || doubtful) {
@@ -499,6 +511,11 @@ impl Tracker {
             } else {
                 TrackingState::Lost
             };
+            if self.state == TrackingState::Lost
+                && corroborated(&frame, method, inliers, &starts, map, &self.rig)
+            {
+                corroborated_pose = Self::relative_to_own_reference(&frame, map)?;
+            }
         } else {
             self.state = TrackingState::Lost;
         }
@@ -511,16 +528,22 @@ impl Tracker {
             }
             let outcome = TrackOutcome {
                 state: self.state,
-                method: TrackingMethod::None,
+                method: if corroborated_pose.is_some() {
+                    TrackingMethod::Corroborated
+                } else {
+                    TrackingMethod::None
+                },
                 inliers,
                 new_keyframe: None,
-                relative_pose: None,
+                relative_pose: corroborated_pose,
                 earlier_keyframe: None,
                 between_views: Vec::new(),
                 after_loss: Vec::new(),
                 interrupt_mapping: false,
             };
-            self.keep_lost(frame);
+            if corroborated_pose.is_none() {
+                self.keep_lost(frame);
+            }
             return Ok((None, outcome, KeyFrameDecision::default()));
         }
         self.lost_since = None;
@@ -766,9 +789,9 @@ impl Tracker {
         frame: &mut Frame,
         map: &Map,
         alternative: &Start,
-        current: LocalMapScore,
-        needed: usize,
+        (current, needed): (LocalMapScore, usize),
         recently_relocalised: bool,
+        starts: &mut Vec<StartPose>,
     ) -> Result<Option<usize>, SlamError> {
         let inliers = current.inliers;
         let kept = (
@@ -794,6 +817,13 @@ impl Tracker {
         } else {
             0
         };
+        if tracked {
+            starts.push(StartPose {
+                method: alternative.method(),
+                pose_cw: frame.pose_cw,
+                inliers: found,
+            });
+        }
         tracing::debug!(
             frame = frame.index,
             inliers,
@@ -921,6 +951,19 @@ impl Tracker {
             return Ok(None);
         };
         let kf_pose = map.pose_cw_of(reference).in_stage("relative pose")?;
+        Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
+    }
+
+    /// `frame`'s pose relative to the keyframe local-map tracking made its
+    /// reference (`T_c,ref`).
+    fn relative_to_own_reference(
+        frame: &Frame,
+        map: &Map,
+    ) -> Result<Option<(KeyFrameId, Se3)>, SlamError> {
+        let Some(reference) = frame.reference_keyframe else {
+            return Ok(None);
+        };
+        let kf_pose = map.pose_cw_of(reference).in_stage("corroborated pose")?;
         Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
     }
 

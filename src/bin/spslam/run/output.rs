@@ -237,6 +237,12 @@ fn localised_late_text(s: &SlamSummary) -> String {
     if s.localised_after_loss > 0 {
         parts.push(format!("{} localised after a loss", s.localised_after_loss));
     }
+    if s.corroborated > 0 {
+        parts.push(format!(
+            "{} lost by tracking, their poses corroborated",
+            s.corroborated
+        ));
+    }
     if parts.is_empty() {
         String::new()
     } else {
