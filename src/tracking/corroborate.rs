@@ -31,8 +31,8 @@ use crate::map::Map;
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
+use super::method::TrackingMethod;
 use super::motion::MIN_POSE_INLIERS;
-use super::tracker::{TrackingMethod, MIN_LOCAL_MAP_INLIERS};
 
 /// Median image distance, pixels, within which two poses agree (√5.991).
 pub(crate) const SAME_POSE_PX: f64 = 2.45;
@@ -49,18 +49,18 @@ pub(crate) struct StartPose {
 }
 
 /// Whether the lost `frame`'s pose (found by `method`, with `inliers`)
-/// will do for its record: [`MIN_LOCAL_MAP_INLIERS`], and another start
-/// with a pose ([`MIN_POSE_INLIERS`]) that agrees with it
+/// will do for its record: `min_inliers` (local-map tracking's), and
+/// another start with a pose ([`MIN_POSE_INLIERS`]) that agrees with it
 /// ([`median_image_distance`] within [`SAME_POSE_PX`]).
 pub(crate) fn corroborated(
     frame: &Frame,
-    method: TrackingMethod,
-    inliers: usize,
+    (method, inliers): (TrackingMethod, usize),
+    min_inliers: usize,
     starts: &[StartPose],
     map: &Map,
     rig: &CameraRig,
 ) -> bool {
-    if inliers < MIN_LOCAL_MAP_INLIERS
+    if inliers < min_inliers
         || matches!(
             method,
             TrackingMethod::None | TrackingMethod::Relocalisation

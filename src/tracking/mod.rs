@@ -33,6 +33,7 @@ mod image_rotation;
 mod keyframe;
 mod late;
 mod local_map;
+mod method;
 mod mono_init;
 mod motion;
 mod pose;

@@ -434,17 +434,23 @@ fn tracked_points_about_to_leave_the_view_ask_for_a_keyframe() {
     );
 }
 
-#[test]
-fn relocalisation_recovers_a_known_pose() {
+/// A frame 0.35 m sideways and 4° away from every keyframe of a chain of
+/// five, relocalised from the identity pose (no prior): the world, its
+/// map, the frame and its true pose.
+fn relocalised_frame() -> (PointWorld, crate::map::Map, super::Frame, crate::optim::Se3) {
     let world = PointWorld::new(5, 1500, (15.0, 5.0, 4.0, 35.0));
     let (map, _) = world.keyframe_chain(5);
-    // 0.35 m sideways and 4° away from every keyframe, no prior: the
-    // frame starts at the identity pose.
     let truth = pose_at(Vector3::new(0.35, -0.1, 1.3), 4f64.to_radians());
     let (mut frame, _) = world.frame(50, &truth, true);
     assert!(ok(relocalise_with(
         &mut frame, &map, &world.rig, None, None
     )));
+    (world, map, frame, truth)
+}
+
+#[test]
+fn relocalisation_recovers_a_known_pose() {
+    let (_, _, frame, truth) = relocalised_frame();
     let error = frame.pose_cw.compose(&truth.inverse());
     let translation = error.translation.norm();
     let rotation = error.rotation.angle().to_degrees();
@@ -471,13 +477,7 @@ fn relocalisation_fails_where_the_map_was_never_seen() {
 fn a_lost_frames_pose_is_corroborated_only_by_another_start_landing_on_it() {
     use super::corroborate::{corroborated, StartPose};
     use super::TrackingMethod::{ImageRotation, ReferenceKeyFrame, Relocalisation};
-    let world = PointWorld::new(5, 1500, (15.0, 5.0, 4.0, 35.0));
-    let (map, _) = world.keyframe_chain(5);
-    let truth = pose_at(Vector3::new(0.35, -0.1, 1.3), 4f64.to_radians());
-    let (mut frame, _) = world.frame(50, &truth, true);
-    assert!(ok(relocalise_with(
-        &mut frame, &map, &world.rig, None, None
-    )));
+    let (world, map, mut frame, truth) = relocalised_frame();
     frame.pose_cw = truth;
     let start = |method, pose_cw, inliers| StartPose {
         method,
@@ -488,8 +488,9 @@ fn a_lost_frames_pose_is_corroborated_only_by_another_start_landing_on_it() {
     // and 1.7° away (the kidnapped camera's two starts) does not.
     let near = pose_at(Vector3::new(0.01, 0.0, 0.0), 0.05f64.to_radians()).compose(&truth);
     let far = pose_at(Vector3::new(0.4, 0.0, 0.0), 1.7f64.to_radians()).compose(&truth);
+    // Local-map tracking's 30 inliers.
     let judge = |method, inliers, starts: &[StartPose]| {
-        corroborated(&frame, method, inliers, starts, &map, &world.rig)
+        corroborated(&frame, (method, inliers), 30, starts, &map, &world.rig)
     };
     assert!(judge(
         ImageRotation,

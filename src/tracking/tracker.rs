@@ -17,6 +17,7 @@ use super::keyframe::{
 };
 use super::late::LateLocalisation;
 use super::local_map::{track_local_map, PointCounting};
+pub use super::method::{TrackingMethod, TrackingState};
 use super::mono_init::MonoInitialiser;
 use super::motion::{
     image_rotation_velocity, track_last_frame, track_last_frame_unratioed,
@@ -25,52 +26,6 @@ use super::motion::{
 use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
 use crate::camera::{CameraRig, Sensor};
 use crate::error::{MapContext, SlamError};
-
-/// Where tracking stands.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub enum TrackingState {
-    /// No map yet: waiting for a frame with enough stereo points.
-    NotInitialised,
-    /// The last frame was tracked.
-    Ok,
-    /// Tracking failed; relocalisation is tried on each frame.
-    Lost,
-}
-
-/// How a frame's pose was found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub enum TrackingMethod {
-    /// It initialised the map.
-    Initialisation,
-    /// Constant-velocity motion model.
-    MotionModel,
-    /// The motion model with the rotation measured from the whole images
-    /// (a turn the constant velocity missed).
-    ImageRotation,
-    /// Descriptor matching against the reference keyframe.
-    ReferenceKeyFrame,
-    /// Descriptor matching against the last frame (where the motion model
-    /// and the reference keyframe left too few local-map inliers).
-    LastFrame,
-    /// Mutual nearest neighbours against the last frame, without the ratio
-    /// test, and PnP RANSAC: the last start before a frame is lost.
-    MutualNearestNeighbours,
-    /// Relocalisation against the keyframes.
-    Relocalisation,
-    /// A frame between a monocular initialisation's two views, localised
-    /// in the map they made (after the fact).
-    BetweenInitialViews,
-    /// A frame lost, localised after the fact once tracking resumed (in a
-    /// new map, or in the old one after a relocalisation; see
-    /// [`super::after_loss`]).
-    AfterLoss,
-    /// A frame lost by tracking's rule whose pose a second start
-    /// corroborated (see [`super::corroborate`]): its record has the pose
-    /// and says `Ok`; tracking stays lost and the map is not changed.
-    Corroborated,
-    /// No pose.
-    None,
-}
 
 /// The result of tracking one frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -136,6 +91,19 @@ pub struct Tracker {
     lost_frames: Vec<Frame>,
     /// Milliseconds the last `track` waited for the map's locks.
     lock_wait_ms: f64,
+}
+
+/// `frame`'s pose relative to `reference` (`T_c,ref`); `None` without one.
+fn relative_to(
+    frame: &Frame,
+    reference: Option<KeyFrameId>,
+    map: &Map,
+) -> Result<Option<(KeyFrameId, Se3)>, SlamError> {
+    let Some(reference) = reference else {
+        return Ok(None);
+    };
+    let kf_pose = map.pose_cw_of(reference).in_stage("relative pose")?;
+    Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
 }
 
 /// A motion-model pose, refined with at least 10 inliers, that failed the
@@ -232,7 +200,7 @@ pub const YOUNG_MAP_KEYFRAMES: usize = 10;
 const YOUNG_MAP_PATIENCE_FRAMES: usize = 1;
 
 /// Inliers local-map tracking needs (ORB-SLAM3: 30, 50 just after relocalisation).
-pub(crate) const MIN_LOCAL_MAP_INLIERS: usize = 30;
+const MIN_LOCAL_MAP_INLIERS: usize = 30;
 
 impl Tracker {
     /// A tracker for `rig`, not yet initialised.
@@ -512,9 +480,16 @@ impl Tracker {
                 TrackingState::Lost
             };
             if self.state == TrackingState::Lost
-                && corroborated(&frame, method, inliers, &starts, map, &self.rig)
+                && corroborated(
+                    &frame,
+                    (method, inliers),
+                    MIN_LOCAL_MAP_INLIERS,
+                    &starts,
+                    map,
+                    &self.rig,
+                )
             {
-                corroborated_pose = Self::relative_to_own_reference(&frame, map)?;
+                corroborated_pose = relative_to(&frame, frame.reference_keyframe, map)?;
             }
         } else {
             self.state = TrackingState::Lost;
@@ -942,29 +917,13 @@ impl Tracker {
         Ok((TrackingMethod::None, false, None))
     }
 
+    /// `frame`'s pose relative to the tracker's reference keyframe.
     fn relative_to_reference(
         &self,
         frame: &Frame,
         map: &Map,
     ) -> Result<Option<(KeyFrameId, Se3)>, SlamError> {
-        let Some(reference) = self.reference else {
-            return Ok(None);
-        };
-        let kf_pose = map.pose_cw_of(reference).in_stage("relative pose")?;
-        Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
-    }
-
-    /// `frame`'s pose relative to the keyframe local-map tracking made its
-    /// reference (`T_c,ref`).
-    fn relative_to_own_reference(
-        frame: &Frame,
-        map: &Map,
-    ) -> Result<Option<(KeyFrameId, Se3)>, SlamError> {
-        let Some(reference) = frame.reference_keyframe else {
-            return Ok(None);
-        };
-        let kf_pose = map.pose_cw_of(reference).in_stage("corroborated pose")?;
-        Ok(Some((reference, frame.pose_cw.compose(&kf_pose.inverse()))))
+        relative_to(frame, self.reference, map)
     }
 
     /// The map was scaled by `scale` (a monocular map merged into an older
