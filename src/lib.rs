@@ -30,6 +30,7 @@ pub mod matching;
 pub mod optim;
 pub mod place;
 pub mod settings;
+pub mod stats;
 pub mod storage;
 pub mod system;
 pub mod tracking;

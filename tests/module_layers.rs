@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 /// The library's top-level modules, bottom layer first. A module may
 /// import from modules of lower layers only (not from its own layer).
 const LAYERS: &[&[&str]] = &[
+    &["stats"],
     &["features", "optim", "dataset", "eval"],
     &["geometry", "settings", "matching", "place", "map"],
     &["camera"],

@@ -262,12 +262,7 @@ impl DepthImage {
 /// The median of the valid (finite, positive) depths among `depths`.
 fn median_of(depths: impl Iterator<Item = f32>) -> Option<f32> {
     let mut valid: Vec<f32> = depths.filter(|d| d.is_finite() && *d > 0.0).collect();
-    if valid.is_empty() {
-        return None;
-    }
-    let mid = valid.len() / 2;
-    let (_, median, _) = valid.select_nth_unstable_by(mid, f32::total_cmp);
-    Some(*median)
+    crate::stats::upper_median(&mut valid)
 }
 
 /// Why a matrix is not a depth image (before the path is attached).

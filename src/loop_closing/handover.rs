@@ -150,11 +150,7 @@ pub fn median_speed(track: &[(usize, Vector3<f64>)]) -> f64 {
         .filter(|w| w[1].0 > w[0].0)
         .map(|w| (w[1].1 - w[0].1).norm() / (w[1].0 - w[0].0) as f64)
         .collect();
-    if steps.is_empty() {
-        return 0.0;
-    }
-    steps.sort_by(f64::total_cmp);
-    steps[steps.len() / 2]
+    crate::stats::upper_median(&mut steps).unwrap_or(0.0)
 }
 
 #[cfg(test)]

@@ -45,9 +45,7 @@ pub(crate) fn side_scale(
     if ratios.len() < MIN_SCALE_PAIRS {
         return None;
     }
-    let mid = ratios.len() / 2;
-    let (_, median, _) = ratios.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(*median)
+    crate::stats::upper_median(&mut ratios)
 }
 
 /// The correction `C` of a query keyframe found at `pose_cw` on the other

@@ -431,12 +431,7 @@ impl Map {
             .map(|p| pose.transform_point(&p.position).z)
             .filter(|z| z.is_finite() && *z > 0.0)
             .collect();
-        if depths.is_empty() {
-            return None;
-        }
-        let mid = depths.len() / 2;
-        let (_, median, _) = depths.select_nth_unstable_by(mid, f64::total_cmp);
-        Some(*median)
+        crate::stats::upper_median(&mut depths)
     }
 
     /// The pose `T_cw` of a keyframe, live or culled (through its parents).

@@ -95,10 +95,5 @@ pub(crate) fn median_image_distance(
             Some(((a.x - b.x).powi(2) + (a.y - b.y).powi(2)).sqrt())
         })
         .collect();
-    if distances.is_empty() {
-        return None;
-    }
-    let mid = distances.len() / 2;
-    let (_, median, _) = distances.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(*median)
+    crate::stats::upper_median(&mut distances)
 }

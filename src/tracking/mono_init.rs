@@ -202,9 +202,9 @@ fn build_initial_map(
     if depths.len() < MIN_INITIAL_POINTS {
         return Ok(None);
     }
-    let mid = depths.len() / 2;
-    let (_, median, _) = depths.select_nth_unstable_by(mid, f64::total_cmp);
-    let median = *median;
+    let Some(median) = crate::stats::upper_median(&mut depths) else {
+        return Ok(None);
+    };
     if !(median.is_finite() && median > 0.0) {
         return Ok(None);
     }
