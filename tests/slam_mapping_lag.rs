@@ -241,14 +241,17 @@ fn superpoint_rgbd_tracks_the_whole_lap_when_mapping_lags_five_frames() {
 /// busy interrupted its BA every time; with ORB-SLAM3's condition for the
 /// interrupt (1a or 1c, session 43) 5 frames are lost, at the third
 /// corner, in 2 maps, with 94 keyframes (51 with ORB-SLAM3's rule of no
-/// monocular keyframe while mapping is busy). The run without the lag
-/// tracks every frame (0.552 m Sim3, 0.24 % of the path). The bounds
-/// guard the gain with a corner's margin; ORB's outputs do not depend on
+/// monocular keyframe while mapping is busy). Since an interrupted BA
+/// keeps the share of its iterations it had time for (session 47; it had
+/// none before) no frame is lost: 2 maps, 95 keyframes, 26 BAs cut, ATE
+/// 6.205 m Sim3 (2.68 % of the path). The run without the lag tracks
+/// every frame (0.552 m Sim3, 0.24 % of the path). The bounds guard the
+/// gain with a corner's margin (5 frames); ORB's outputs do not depend on
 /// the CPU kind.
 #[test]
 fn monocular_keeps_the_lap_but_its_corners_when_mapping_lags_five_frames() {
     let (lost, maps, keyframes, _, interrupted) = orb_sensor_lap(Sensor::Monocular, 5);
-    assert!(lost.len() <= 10, "{} frames lost: {lost:?}", lost.len());
+    assert!(lost.len() <= 5, "{} frames lost: {lost:?}", lost.len());
     assert!(maps <= 3, "{maps} maps");
     assert!(keyframes >= 80, "{keyframes} keyframes");
     assert!(interrupted > 0, "no BA was interrupted");

@@ -132,20 +132,28 @@ pub(crate) struct SolvedBundle {
 }
 
 /// Solve: runs the optimiser on the detached problem (no lock needed),
-/// stopping after the current iteration when `abort` is raised.
+/// stopping after the current iteration when `abort` is raised, and after
+/// `iteration_share` of its iterations (1: all; less where a slow
+/// machine's BA was interrupted, see [`super::LocalMapper::set_bundle_share`]).
 pub(crate) fn solve_bundle(
     mut snapshot: BundleSnapshot,
     abort: &AtomicBool,
+    iteration_share: f64,
 ) -> Result<SolvedBundle, SlamError> {
-    let report = local_bundle_adjustment_abortable(
-        &mut snapshot.problem,
-        &LocalBaConfig::default(),
-        Some(abort),
-    )
-    .in_stage("local bundle adjustment")?;
+    let config = if iteration_share < 1.0 {
+        LocalBaConfig::default().with_iteration_share(iteration_share)
+    } else {
+        LocalBaConfig::default()
+    };
+    let report = local_bundle_adjustment_abortable(&mut snapshot.problem, &config, Some(abort))
+        .in_stage("local bundle adjustment")?;
+    // A cut iteration budget that the solve used up counts as an abort.
+    let stopped_by_budget = |t: Termination| {
+        iteration_share < 1.0 && matches!(t, Termination::IterationLimit | Termination::Skipped)
+    };
     let aborted = [report.first_stage, report.second_stage]
         .iter()
-        .any(|s| s.termination == Termination::Aborted);
+        .any(|s| s.termination == Termination::Aborted || stopped_by_budget(s.termination));
     Ok(SolvedBundle {
         snapshot,
         outliers: report.outliers,

@@ -114,15 +114,20 @@ pub struct LocalMapper {
     /// thread, each keyframe waits (slowdown − 1) × the previous
     /// keyframe's processing time, 40 % of it before its processing starts
     /// and 60 % before its local BA ([`BEFORE_BUNDLE_SHARE`]; tracking's
-    /// interrupt cuts the second part short), so local mapping keeps up
-    /// `slowdown` times more slowly. 1 (the default) is off; inline
-    /// mapping ignores it.
+    /// interrupt cuts the second part short, and the BA then does the
+    /// share of its iterations the wait had reached, as a slow BA would:
+    /// [`Self::set_bundle_share`]), so local mapping keeps up `slowdown`
+    /// times more slowly. 1 (the default) is off; inline mapping ignores
+    /// it.
     pub slowdown: f64,
     /// The slow-machine hook's wait before the next local BA (see
     /// [`Self::set_wait_before_bundle`]).
     wait_before_bundle: Duration,
     /// How long the last keyframe waited before its BA.
     waited_before_bundle: Duration,
+    /// The share of its iterations the next keyframe's local BA gets (see
+    /// [`Self::set_bundle_share`]); 1 outside the slow-machine hooks.
+    bundle_share: f64,
 }
 
 /// The share of a keyframe's mapping time spent before its local BA
@@ -186,6 +191,7 @@ impl LocalMapper {
             slowdown: 1.0,
             wait_before_bundle: Duration::ZERO,
             waited_before_bundle: Duration::ZERO,
+            bundle_share: 1.0,
         }
     }
 
@@ -203,6 +209,7 @@ impl LocalMapper {
             slowdown: self.slowdown,
             wait_before_bundle: Duration::ZERO,
             waited_before_bundle: Duration::ZERO,
+            bundle_share: 1.0,
         }
     }
 
@@ -224,6 +231,19 @@ impl LocalMapper {
         self.wait_before_bundle = wait;
     }
 
+    /// The slow-machine hooks' interrupted BA: the next keyframe's local
+    /// BA does only the first `share` (0–1) of its iterations, as a BA
+    /// that a slow machine runs and tracking interrupts after that share
+    /// of its time keeps the iterations it finished (ORB-SLAM3's
+    /// `InterruptBA` stops g2o after its current iteration and the
+    /// optimised state is applied). It applies to the next keyframe only.
+    /// The lagged inline mapper sets it from the frame of the interrupt;
+    /// on the thread the wait before the BA gives it
+    /// ([`Self::set_wait_before_bundle`]).
+    pub fn set_bundle_share(&mut self, share: f64) {
+        self.bundle_share = share.clamp(0.0, 1.0);
+    }
+
     /// How long the last keyframe waited before its BA (the hook's wait
     /// is not the mapper's own work).
     pub fn waited_before_bundle(&self) -> Duration {
@@ -231,8 +251,12 @@ impl LocalMapper {
     }
 
     /// Sleeps for the hook's wait before BA, in short slices, until it has
-    /// passed or the abort flag is raised.
-    fn wait_before_bundle_unless_aborted(&mut self, wait: Duration) {
+    /// passed or the abort flag is raised; returns the share of the wait
+    /// that passed (1 without a wait).
+    fn wait_before_bundle_unless_aborted(&mut self, wait: Duration) -> f64 {
+        if wait.is_zero() {
+            return 1.0;
+        }
         let start = Instant::now();
         let end = start + wait;
         while !self.abort.load(Ordering::Acquire) {
@@ -243,6 +267,7 @@ impl LocalMapper {
             std::thread::sleep((end - now).min(Duration::from_millis(2)));
         }
         self.waited_before_bundle = start.elapsed();
+        (self.waited_before_bundle.as_secs_f64() / wait.as_secs_f64()).min(1.0)
     }
 
     /// Runs `hook` before every BA solve, with no lock held.
@@ -297,6 +322,7 @@ impl LocalMapper {
         // The slow hook's wait belongs to this keyframe's BA only: a
         // keyframe that skips its BA drops it.
         let wait_before_bundle = std::mem::take(&mut self.wait_before_bundle);
+        let mut bundle_share = std::mem::replace(&mut self.bundle_share, 1.0);
         let mut summary = MappingSummary::default();
         let mut lap = Instant::now();
         let mut split = || {
@@ -352,7 +378,14 @@ impl LocalMapper {
             summary.elapsed_ms = start.elapsed().as_secs_f64() * 1e3;
             return Ok(summary);
         }
-        self.wait_before_bundle_unless_aborted(wait_before_bundle);
+        // The hook's wait stands for a slow BA: when tracking interrupts
+        // it, the BA keeps the share of its iterations that the wait had
+        // reached, and the flag that ended the wait has done its work.
+        let waited = self.wait_before_bundle_unless_aborted(wait_before_bundle);
+        if waited < 1.0 {
+            bundle_share = bundle_share.min(waited);
+            self.abort.store(false, Ordering::Release);
+        }
         if self.bundle_adjustment {
             let snapshot = {
                 let map = read(map)?;
@@ -364,7 +397,7 @@ impl LocalMapper {
                 if let Some(hook) = &self.before_solve {
                     hook();
                 }
-                let solved = solve_bundle(snapshot, &self.abort)?;
+                let solved = solve_bundle(snapshot, &self.abort, bundle_share)?;
                 let mut map = write(map)?;
                 summary.bundle = apply_bundle(&mut map, solved)?;
                 self.checked(&map, "local bundle adjustment")?;

@@ -203,3 +203,53 @@ fn far_keypoints_keep_a_disparity_offset_out_of_the_scale() {
         "{close_only} vs {every_depth}"
     );
 }
+
+/// The position error, metres, of keyframe `kf` against its true pose.
+fn position_error(map: &Map, kf: crate::map::KeyFrameId, truth: &crate::optim::Se3) -> f64 {
+    let pose = ok(map.keyframe(kf)).pose_cw();
+    (pose.inverse().translation - truth.inverse().translation).norm()
+}
+
+/// The slow-machine hooks' interrupted BA ([`super::LocalMapper::set_bundle_share`]):
+/// a BA interrupted after a share of its work keeps the iterations it had
+/// done, as ORB-SLAM3's g2o keeps its state when `mbAbortBA` stops it. On a
+/// stereo chain whose newest keyframe is 30 cm off, no iteration leaves it
+/// there, a third of them (the robust stage) brings most of it back, as
+/// does the whole BA; a cut BA reports itself aborted.
+#[test]
+fn an_interrupted_bundle_adjustment_keeps_the_share_of_iterations_it_had_time_for() {
+    let world = PointWorld::new(11, 600, (15.0, 4.0, 6.0, 30.0));
+    let run = |share: f64| {
+        let (mut map, kfs) = world.keyframe_chain(5);
+        let (newest, _) = kfs[4];
+        let truth = ok(map.keyframe(newest)).pose_cw();
+        let off = crate::optim::Se3::new(
+            nalgebra::UnitQuaternion::identity(),
+            Vector3::new(0.3, 0.0, 0.0),
+        );
+        ok(map.keyframe_mut(newest)).set_pose_cw(off.compose(&truth));
+        let before = position_error(&map, newest, &truth);
+        let shared = std::sync::Arc::new(std::sync::RwLock::new(map));
+        let mut mapper = super::LocalMapper::new(world.rig);
+        mapper.keyframe_culling = false;
+        mapper.set_bundle_share(share);
+        let summary = ok(mapper.process_keyframe(&shared, newest, &[], &|| false));
+        let map = ok(shared.read().map_err(|_| "poisoned"));
+        (
+            before,
+            position_error(&map, newest, &truth),
+            summary.bundle.aborted,
+        )
+    };
+    let (before, none, none_aborted) = run(0.0);
+    let (_, third, third_aborted) = run(1.0 / 3.0);
+    let (_, whole, whole_aborted) = run(1.0);
+    eprintln!("newest keyframe off by {before:.3} m; after no iteration {none:.4} m, a third {third:.4} m, all {whole:.6} m");
+    assert!(
+        (none - before).abs() < 1e-9,
+        "no iteration moved it: {none}"
+    );
+    assert!(third < 0.5 * before, "a third of the BA: {third} m");
+    assert!(whole < 1e-3, "the whole BA: {whole} m");
+    assert!(none_aborted && third_aborted && !whole_aborted);
+}

@@ -39,8 +39,15 @@ pub(super) enum LaggedStep {
     /// Every step.
     Full,
     /// Tracking interrupted the local BA (ORB-SLAM3's `InterruptBA`) before
-    /// it could finish: points, fusion and culling done, the BA cut off.
-    BundleInterrupted,
+    /// it could finish: points, fusion and culling done, the BA cut off
+    /// after `frames_done` of the `frames` its work takes (it keeps that
+    /// share of its iterations, as an interrupted BA keeps what it reached).
+    BundleInterrupted {
+        /// Frames the BA ran before the interrupt ended it.
+        frames_done: usize,
+        /// Frames the whole BA takes.
+        frames: usize,
+    },
     /// Another keyframe was queued before fusion: fusion, BA and culling
     /// are left to it (ORB-SLAM3's `CheckNewKeyFrames`).
     LeftToNext,
@@ -55,6 +62,21 @@ pub(super) struct LaggedMapping {
     head_started: usize,
     /// The frame at which tracking first interrupted the first job's BA.
     head_interrupted: Option<usize>,
+}
+
+impl LaggedStep {
+    /// The share of the local BA's work this step leaves it: 1 unless
+    /// the BA was interrupted.
+    pub fn bundle_share(&self) -> f64 {
+        match *self {
+            LaggedStep::BundleInterrupted {
+                frames_done,
+                frames,
+            } if frames > 0 => frames_done as f64 / frames as f64,
+            LaggedStep::BundleInterrupted { .. } => 0.0,
+            LaggedStep::Full | LaggedStep::LeftToNext => 1.0,
+        }
+    }
 }
 
 impl LaggedMapping {
@@ -116,7 +138,8 @@ impl LaggedMapping {
     ///   drains at about one keyframe per frame, as it does on the thread;
     /// - tracking interrupted its BA at frame `f` ([`Self::interrupt`]): it
     ///   ends at `f + 1`, but not before the work before the BA (40 % of
-    ///   the lag, at least a frame) is done.
+    ///   the lag, at least a frame) is done; its BA had the frames from
+    ///   that work's end to its own.
     pub fn due(&mut self, frame: usize) -> Vec<(LaggedJob, LaggedStep)> {
         let mut done = Vec::new();
         while !self.queue.is_empty() {
@@ -129,8 +152,15 @@ impl LaggedMapping {
                 let interrupted_end = self
                     .head_interrupted
                     .map(|at| (at + 1).max(start + self.frames_before_bundle()));
+                let bundle_start = start + self.frames_before_bundle();
                 match interrupted_end {
-                    Some(end) if end < full => (end, LaggedStep::BundleInterrupted),
+                    Some(end) if end < full => (
+                        end,
+                        LaggedStep::BundleInterrupted {
+                            frames_done: end - bundle_start,
+                            frames: full - bundle_start,
+                        },
+                    ),
                     _ => (full, LaggedStep::Full),
                 }
             };
@@ -233,13 +263,24 @@ mod tests {
         lag.submit(0, job(0));
         lag.interrupt(1);
         assert!(lag.due(1).is_empty(), "the points are not made yet");
-        assert_eq!(steps(&lag.due(2)), vec![(0, LaggedStep::BundleInterrupted)]);
+        let none_of_three = LaggedStep::BundleInterrupted {
+            frames_done: 0,
+            frames: 3,
+        };
+        assert_eq!(steps(&lag.due(2)), vec![(0, none_of_three)]);
+        assert_eq!(none_of_three.bundle_share(), 0.0);
         // Interrupted in its fourth frame: it ends at the next one.
         lag.submit(2, job(2));
         lag.interrupt(5);
         lag.interrupt(3); // only the first interrupt counts
         assert!(lag.due(5).is_empty());
-        assert_eq!(steps(&lag.due(6)), vec![(2, LaggedStep::BundleInterrupted)]);
+        let two_of_three = LaggedStep::BundleInterrupted {
+            frames_done: 2,
+            frames: 3,
+        };
+        assert_eq!(steps(&lag.due(6)), vec![(2, two_of_three)]);
+        assert!((two_of_three.bundle_share() - 2.0 / 3.0).abs() < 1e-12);
+        assert_eq!(LaggedStep::Full.bundle_share(), 1.0);
         // An interrupt in the last frame changes nothing.
         lag.submit(10, job(10));
         lag.interrupt(14);
@@ -249,10 +290,7 @@ mod tests {
         lag.submit(20, job(20));
         lag.interrupt(23);
         lag.submit(23, job(23));
-        assert_eq!(
-            steps(&lag.due(24)),
-            vec![(20, LaggedStep::BundleInterrupted)]
-        );
+        assert_eq!(steps(&lag.due(24)), vec![(20, two_of_three)]);
         assert!(lag.due(28).is_empty(), "23's service began at 24");
         assert_eq!(steps(&lag.due(29)), vec![(23, LaggedStep::Full)]);
         // Nothing in service: an interrupt is ignored.

@@ -277,23 +277,14 @@ impl SlamSystem {
             return Ok(());
         };
         let map = self.atlas.active().map.clone();
-        let abort = mapper.abort_flag();
         for (job, step) in jobs {
             // The mapper asks whether tracking queued another keyframe
             // after its triangulation and after its fusion; an interrupted
-            // BA is replayed by raising the abort flag at those points
-            // (after the mapper lowered it), as tracking would have.
-            let tracking_signals = || match step {
-                LaggedStep::Full => false,
-                LaggedStep::LeftToNext => true,
-                LaggedStep::BundleInterrupted => {
-                    abort.store(true, std::sync::atomic::Ordering::Release);
-                    false
-                }
-            };
+            // BA keeps the share of its iterations it had time for.
+            let tracking_signals = || step == LaggedStep::LeftToNext;
+            mapper.set_bundle_share(step.bundle_share());
             let summary =
                 mapper.process_keyframe(&map, job.keyframe, &job.created, &tracking_signals)?;
-            abort.store(false, std::sync::atomic::Ordering::Release);
             self.loop_inbox.push(job.keyframe);
             if let Some(record) = self.records.get_mut(job.record) {
                 record.timings.mapping_ms = summary.elapsed_ms;

@@ -84,6 +84,22 @@ impl LocalBaConfig {
         }
     }
 
+    /// The same settings with only the first `share` (0–1) of the
+    /// iterations, in order: the first stage's, then the second's (rounded
+    /// to the nearest iteration). A BA interrupted after `share` of its
+    /// work has done these (ORB-SLAM3's `mbAbortBA` stops g2o after its
+    /// current iteration and keeps what it reached).
+    pub fn with_iteration_share(self, share: f64) -> Self {
+        let total = self.first_stage_iterations + self.second_stage_iterations;
+        let kept = (share.clamp(0.0, 1.0) * total as f64).round() as usize;
+        let first = kept.min(self.first_stage_iterations);
+        Self {
+            first_stage_iterations: first,
+            second_stage_iterations: kept - first,
+            ..self
+        }
+    }
+
     /// The number of worker threads to use.
     pub fn worker_threads(&self) -> usize {
         if self.threads > 0 {
@@ -91,5 +107,25 @@ impl LocalBaConfig {
         } else {
             std::thread::available_parallelism().map_or(1, |n| n.get())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::LocalBaConfig;
+
+    #[test]
+    fn an_iteration_share_keeps_the_first_stage_first() {
+        let stages = |share: f64| {
+            let c = LocalBaConfig::default().with_iteration_share(share);
+            (c.first_stage_iterations, c.second_stage_iterations)
+        };
+        assert_eq!(stages(1.0), (5, 10));
+        assert_eq!(stages(2.0), (5, 10));
+        assert_eq!(stages(0.0), (0, 0));
+        assert_eq!(stages(-1.0), (0, 0));
+        assert_eq!(stages(1.0 / 3.0), (5, 0));
+        assert_eq!(stages(0.2), (3, 0));
+        assert_eq!(stages(2.0 / 3.0), (5, 5));
     }
 }
