@@ -602,13 +602,7 @@ impl SlamSystem {
             index,
             timestamp,
             map: map_index,
-            // A lost frame with a corroborated pose has a pose: its record
-            // says so.
-            state: if outcome.method == TrackingMethod::Corroborated {
-                TrackingState::Ok
-            } else {
-                outcome.state
-            },
+            state: outcome.record_state(),
             method: outcome.method,
             inliers: outcome.inliers,
             stereo_points,

@@ -55,6 +55,20 @@ pub struct TrackOutcome {
     pub interrupt_mapping: bool,
 }
 
+impl TrackOutcome {
+    /// The state the frame's record gives: the tracker's state, except
+    /// that a lost frame whose pose a second start corroborated
+    /// ([`TrackingMethod::Corroborated`]) has a pose, so its record is Ok
+    /// while tracking itself stays lost.
+    pub fn record_state(&self) -> TrackingState {
+        if self.method == TrackingMethod::Corroborated {
+            TrackingState::Ok
+        } else {
+            self.state
+        }
+    }
+}
+
 /// Tracks frames against a map.
 #[derive(Debug)]
 pub struct Tracker {
@@ -421,16 +435,21 @@ impl Tracker {
                 }
             };
             inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
-            // Every start's pose, for a lost frame's corroboration.
-            let mut starts = vec![StartPose {
-                method,
-                pose_cw: frame.pose_cw,
-                inliers,
-            }];
+            // Every start's pose, for a lost frame's corroboration: the
+            // first one's is kept once another start is tried (a frame
+            // tracked by its first start allocates nothing).
+            let mut starts = Vec::new();
             // Another start, scored against the current pose by the inliers
             // each start needs.
             let this = &*self;
             let mut try_start = |frame: &mut Frame, alternative: &Start, method, inliers| {
+                if starts.is_empty() {
+                    starts.push(StartPose {
+                        method,
+                        pose_cw: frame.pose_cw,
+                        inliers,
+                    });
+                }
                 let current = LocalMapScore::new(inliers, needed_for(method));
                 let needed = needed_for(alternative.method());
                 this.try_instead(
