@@ -72,18 +72,19 @@ rust-release: build
 
 # The main job: synthesise one lap of the city-block loop (232 stereo
 # frames, 640x480, exact ground truth), run stereo SLAM with SuperPoint +
-# ANMS on it, print the ATE and write the trajectory plot. SuperPoint runs on
-# one pyramid level here (the default, int8 network): about a minute and a
-# half on a 2-core machine.
+# ANMS on it, print the ATE and write the trajectory plot. SuperPoint runs
+# with the defaults (int8 network; one pyramid level for stereo and RGB-D,
+# four for monocular): about a minute and a half per sensor on a 2-core
+# machine.
 DEMO_SEQ := $(OUT)/demo_loop
 demo: SPSLAM_FEATURES = viewer
 demo: build
 	@mkdir -p $(OUT)
 	./target/release/spslam synth --out $(DEMO_SEQ) --scene loop --overwrite
 	./target/release/spslam extract $(DEMO_SEQ)/sequences/00/image_0/000000.png --features 1000 --anms kdtree --draw $(OUT)/demo_keypoints.png
-	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --levels 1 --out $(OUT)/demo_run --rerun $(OUT)/demo_run/run.rrd
-	./target/release/spslam run --dataset tum:$(DEMO_SEQ)/sequences/00 --levels 1 --out $(OUT)/demo_run_rgbd
-	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --sensor mono --levels 1 --out $(OUT)/demo_run_mono
+	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --out $(OUT)/demo_run --rerun $(OUT)/demo_run/run.rrd
+	./target/release/spslam run --dataset tum:$(DEMO_SEQ)/sequences/00 --out $(OUT)/demo_run_rgbd
+	./target/release/spslam run --dataset synth:$(DEMO_SEQ) --sensor mono --out $(OUT)/demo_run_mono
 	@echo "[demo] trajectory plot: $(OUT)/demo_run/trajectory.png (errors: $(OUT)/demo_run/trajectory_errors.png)"
 	@echo "[demo] report: $(OUT)/demo_run/report.txt; keypoints of frame 0: $(OUT)/demo_keypoints.png"
 	@echo "[demo] the run in rerun's 3-D viewer: $(OUT)/demo_run/run.rrd (make setup-viewer, then .deps/venv-viewer/bin/rerun $(OUT)/demo_run/run.rrd)"

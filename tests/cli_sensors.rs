@@ -1,7 +1,8 @@
 //! `spslam run --sensor` and `--dataset tum:` on a synthetic sequence
 //! written by `spslam synth` (ORB features, no model needed): RGB-D from
 //! the TUM lists and depth maps, monocular from the left images, a
-//! sensor the dataset cannot feed refused, and bad depth images named.
+//! sensor the dataset cannot feed refused, and bad depth images named;
+//! SuperPoint's default pyramid per sensor (that test needs the model).
 
 mod common;
 
@@ -324,4 +325,41 @@ fn lost_rows_omit_leaves_untracked_frames_out_of_tum_files_and_is_refused_for_ki
         text.contains("--lost-rows omit") && text.contains("KITTI-format"),
         "{text}"
     );
+}
+
+/// SuperPoint's default pyramid is chosen by the sensor
+/// (`ExtractorSettings::superpoint_levels_for`): one level with a depth,
+/// four without; `--levels` overrides it for both.
+#[test]
+fn superpoint_levels_default_to_one_with_a_depth_and_four_without() {
+    if !common::model_available("superpoint_levels_default_to_one_with_a_depth_and_four_without") {
+        return;
+    }
+    let data = synth("levels");
+    let synth_dataset = format!("synth:{}", data.path().display());
+    for (sensor, extra, levels) in [
+        ("rgbd", None, 1),
+        ("mono", None, 4),
+        ("mono", Some("2"), 2),
+    ] {
+        let out = data.path().join(format!("out-{sensor}-{levels}"));
+        let mut command = spslam();
+        command
+            .arg("run")
+            .args(["--dataset", &synth_dataset, "--sensor", sensor])
+            .args(["--extractor", "superpoint", "--inline-mapping", "--frames", "2"])
+            .arg("--out")
+            .arg(&out);
+        if let Some(n) = extra {
+            command.args(["--levels", n]);
+        }
+        let output = command.output().expect("run spslam run");
+        assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
+        let r = report(&out);
+        let inference = r["inference"].as_str().unwrap_or_default();
+        assert!(
+            inference.ends_with(&format!(", {levels} levels")),
+            "{sensor} {extra:?}: {inference}"
+        );
+    }
 }

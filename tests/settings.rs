@@ -4,7 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use spslam::features::{AnmsMethod, Device, ExposureConfig, ExposureMode, Precision};
-use spslam::settings::{SettingsError, SlamSettings, DEFAULT_TH_DEPTH};
+use spslam::settings::{
+    SettingsError, SlamSettings, DEFAULT_MONOCULAR_SUPERPOINT_LEVELS, DEFAULT_SUPERPOINT_LEVELS,
+    DEFAULT_TH_DEPTH,
+};
 
 fn write(name: &str, text: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("spslam_settings_{}", std::process::id()));
@@ -65,6 +68,32 @@ fn reads_the_older_layout_with_camera_bf() {
     assert_eq!(s.th_depth, 35.0);
     assert_eq!(s.camera.fps, 20.0);
     assert_eq!(s.extractor.n_features, 1200);
+}
+
+#[test]
+fn superpoint_levels_default_by_sensor_unless_the_settings_say() {
+    // Absent: one level with a depth (speed), four without (the
+    // monocular map's scale; EVALUATION.md, "Monocular scale and the
+    // pyramid"), whatever ORB's `ORBextractor.nLevels: 8` says.
+    let s = SlamSettings::from_file(write("levels_default.yaml", OLD_LAYOUT)).expect("settings");
+    assert_eq!(s.extractor.superpoint_levels, None);
+    assert_eq!(s.extractor.superpoint_levels_for(false), DEFAULT_SUPERPOINT_LEVELS);
+    assert_eq!(
+        s.extractor.superpoint_levels_for(true),
+        DEFAULT_MONOCULAR_SUPERPOINT_LEVELS
+    );
+    assert_eq!((DEFAULT_SUPERPOINT_LEVELS, DEFAULT_MONOCULAR_SUPERPOINT_LEVELS), (1, 4));
+    // Given: the same for every sensor.
+    let text = format!("{OLD_LAYOUT}SuperPoint.nLevels: 2\n");
+    let s = SlamSettings::from_file(write("levels_two.yaml", &text)).expect("settings");
+    assert_eq!(s.extractor.superpoint_levels_for(false), 2);
+    assert_eq!(s.extractor.superpoint_levels_for(true), 2);
+    let text = format!("{OLD_LAYOUT}SuperPoint.nLevels: 0\n");
+    let e = error_for("levels_zero.yaml", &text);
+    assert!(
+        matches!(&e, SettingsError::Invalid { key, .. } if key == "SuperPoint.nLevels"),
+        "{e}"
+    );
 }
 
 #[test]

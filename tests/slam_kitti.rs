@@ -44,7 +44,7 @@ fn run_kitti(data: &std::path::Path, precision: Option<Precision>) -> KittiRun {
     // as in ORB-SLAM3).
     let config = settings
         .extractor
-        .superpoint_config(settings.extractor.superpoint_levels, 1);
+        .superpoint_config(settings.extractor.superpoint_levels_for(false), 1);
     let sp = || Box::new(common::extractor(config.clone()));
     let mut slam = SlamSystem::new(rig, Frontend::new(sp(), sp(), &rig));
     if let Some(mapper) = slam.mapper_mut() {

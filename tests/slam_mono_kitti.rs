@@ -1,9 +1,13 @@
 //! Monocular SLAM with SuperPoint (what `spslam run --sensor mono` builds:
-//! int8, the settings' SuperPoint levels) on the left images of the KITTI
-//! 06 excerpt (51 frames): it must initialise, track every frame after
-//! that to the end, and keep the ATE after Sim3 alignment and the scale
-//! drift within regression bounds (measured 0.036 m and 1.006x; the
-//! bounds are 1 % of the path and ±10 %).
+//! int8, the settings' SuperPoint levels for a monocular run, four by
+//! default) on the left images of the KITTI 06 excerpt (51 frames): it
+//! must initialise, track every frame after that to the end, and keep the
+//! ATE after Sim3 alignment and the scale drift within regression bounds.
+//! Measured on four levels (AMD EPYC, AVX-512 VNNI): 0.0204 m over the
+//! 59.9 m path and a drift of 1.002x (one level, before: 0.036 m and
+//! 1.006x). The bounds, 0.1 % of the path (0.060 m, 3x the measurement,
+//! above the one-level figure) and ±5 %, leave room for the int8
+//! network's differences between CPU kinds.
 
 mod common;
 
@@ -31,7 +35,7 @@ fn monocular_superpoint_on_kitti_06_initialises_and_tracks_to_the_end() {
         .unwrap_or_else(|e| panic!("{e}"));
     let config = settings
         .extractor
-        .superpoint_config(settings.extractor.superpoint_levels, 2);
+        .superpoint_config(settings.extractor.superpoint_levels_for(true), 2);
     let extractor = Box::new(common::extractor(config.clone()));
     let frontend = Frontend::single(extractor, &rig).unwrap_or_else(|e| panic!("{e}"));
     let mut slam = SlamSystem::new(rig, frontend);
@@ -100,12 +104,12 @@ fn monocular_superpoint_on_kitti_06_initialises_and_tracks_to_the_end() {
         "frames lost after initialisation: {lost:?}"
     );
     assert!(
-        sim3.stats.rmse <= 0.01 * path,
+        sim3.stats.rmse <= 0.001 * path,
         "ATE (Sim3) {:.4} m over {path:.1} m",
         sim3.stats.rmse
     );
     assert!(
-        (0.9..=1.1).contains(&drift.ratio),
+        (0.95..=1.05).contains(&drift.ratio),
         "scale drift {:.3}x",
         drift.ratio
     );

@@ -10,8 +10,10 @@
 //! optional:
 //! - `SuperPoint.anms`: `kdtree` (default), `ssc` or `none`;
 //! - `SuperPoint.nLevels`: SuperPoint's pyramid levels in `spslam run`
-//!   (default [`DEFAULT_SUPERPOINT_LEVELS`]; `ORBextractor.nLevels` stays
-//!   ORB's, and the C++ shim's);
+//!   (default [`DEFAULT_SUPERPOINT_LEVELS`] with a depth,
+//!   [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] without; see
+//!   [`ExtractorSettings::superpoint_levels_for`]; `ORBextractor.nLevels`
+//!   stays ORB's, and the C++ shim's);
 //! - `SuperPoint.precision`: `fp32` or `int8` (default: see [`Precision`]);
 //!   it picks the default model file;
 //! - `SuperPoint.device`: `auto` (default), `cpu` or `cuda` (ONNX Runtime's
@@ -79,8 +81,21 @@ impl CameraSettings {
 /// level against 0.058 m with fp32 on eight (the drift stays 1.0 %), and the synthetic highway
 /// drifts 0.93 % on one int8 level against 0.55 % on eight (fp32: 0.88 %
 /// and 0.36 %). Set `SuperPoint.nLevels: 8` (or
-/// `--levels 8`) for ORB-SLAM3's pyramid.
+/// `--levels 8`) for ORB-SLAM3's pyramid. Monocular runs take
+/// [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] instead.
 pub const DEFAULT_SUPERPOINT_LEVELS: usize = 1;
+
+/// SuperPoint's pyramid levels in a monocular `spslam run` when the
+/// settings do not say. Without a depth, a map point's scale comes only
+/// from triangulation across frames, and on one level a point seen from
+/// nearer or farther than where it was made is found at the wrong scale
+/// or not at all, so the map's scale drifts: on the 7-Scenes kitchen the
+/// estimate's scale drifted 10.5 % on one level against 4.5 % on four
+/// (ORB on eight: 4.5 %). Chosen by measurement over the monocular cases
+/// of the suite (EVALUATION.md, "Monocular scale and the pyramid"): four
+/// levels beat one on the real and synthetic cases at 2.1–2.8× the time
+/// per frame.
+pub const DEFAULT_MONOCULAR_SUPERPOINT_LEVELS: usize = 4;
 
 /// Feature-extractor parameters, with ORB-SLAM3's names and defaults.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -92,10 +107,10 @@ pub struct ExtractorSettings {
     /// Pyramid levels (`ORBextractor.nLevels`): ORB's, and SuperPoint's in
     /// the C++ shim, which honours it exactly.
     pub n_levels: usize,
-    /// SuperPoint's pyramid levels in `spslam run` (`SuperPoint.nLevels`);
-    /// [`DEFAULT_SUPERPOINT_LEVELS`] when absent, whatever
-    /// `ORBextractor.nLevels` says.
-    pub superpoint_levels: usize,
+    /// SuperPoint's pyramid levels in `spslam run` (`SuperPoint.nLevels`),
+    /// `None` when the settings do not say, whatever `ORBextractor.nLevels`
+    /// says: [`Self::superpoint_levels_for`] then picks the sensor's default.
+    pub superpoint_levels: Option<usize>,
     /// FAST threshold (`ORBextractor.iniThFAST`); SuperPoint maps it to iniThFAST/4000.
     pub ini_th_fast: i32,
     /// Fallback FAST threshold (`ORBextractor.minThFAST`).
@@ -124,7 +139,7 @@ impl Default for ExtractorSettings {
             n_features: 1000,
             scale_factor: 1.2,
             n_levels: 8,
-            superpoint_levels: DEFAULT_SUPERPOINT_LEVELS,
+            superpoint_levels: None,
             ini_th_fast: 20,
             min_th_fast: 7,
             anms: AnmsMethod::default(),
@@ -138,6 +153,19 @@ impl Default for ExtractorSettings {
 }
 
 impl ExtractorSettings {
+    /// SuperPoint's pyramid levels for a run with (`monocular == false`)
+    /// or without a depth: `SuperPoint.nLevels` when the settings say,
+    /// else [`DEFAULT_SUPERPOINT_LEVELS`] or
+    /// [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`]. The one place that decides
+    /// the default pyramid of `spslam run`.
+    pub fn superpoint_levels_for(&self, monocular: bool) -> usize {
+        self.superpoint_levels.unwrap_or(if monocular {
+            DEFAULT_MONOCULAR_SUPERPOINT_LEVELS
+        } else {
+            DEFAULT_SUPERPOINT_LEVELS
+        })
+    }
+
     /// The SuperPoint extractor these settings describe (ORB-SLAM3's
     /// constructor mapping, on `levels` pyramid levels), with `threads`
     /// ONNX Runtime threads.
@@ -361,11 +389,9 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
     if !(1..=32).contains(&n_levels) {
         return Err(reader.invalid("ORBextractor.nLevels", n_levels, "must be 1..=32"));
     }
-    let superpoint_levels = reader
-        .optional_i64(&["SuperPoint.nLevels"])?
-        .unwrap_or(defaults.superpoint_levels as i64);
-    if !(1..=32).contains(&superpoint_levels) {
-        return Err(reader.invalid("SuperPoint.nLevels", superpoint_levels, "must be 1..=32"));
+    let superpoint_levels = reader.optional_i64(&["SuperPoint.nLevels"])?;
+    if let Some(levels) = superpoint_levels.filter(|l| !(1..=32).contains(l)) {
+        return Err(reader.invalid("SuperPoint.nLevels", levels, "must be 1..=32"));
     }
     let threshold = |key: &str, default: i32| -> Result<i32> {
         match reader.optional_i64(&[key])? {
@@ -425,7 +451,7 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
         n_features: n_features as usize,
         scale_factor,
         n_levels: n_levels as usize,
-        superpoint_levels: superpoint_levels as usize,
+        superpoint_levels: superpoint_levels.map(|l| l as usize),
         ini_th_fast,
         min_th_fast,
         anms,

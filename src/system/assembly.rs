@@ -139,7 +139,9 @@ pub fn assemble_system(
 ) -> Result<AssembledSystem, SlamError> {
     let rig = CameraRig::for_sensor(settings, sensor, size.0, size.1)?;
     let levels = options.levels.unwrap_or(match options.extractor {
-        ExtractorKind::SuperPoint => settings.extractor.superpoint_levels,
+        ExtractorKind::SuperPoint => settings
+            .extractor
+            .superpoint_levels_for(sensor == Sensor::Monocular),
         ExtractorKind::Orb => settings.extractor.n_levels,
     });
     let (left, right) = extractors(options.extractor, settings, levels, sensor)?;

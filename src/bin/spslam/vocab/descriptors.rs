@@ -107,7 +107,7 @@ pub fn extractor(args: &TrainArgs) -> Result<Box<dyn FeatureExtractor>> {
 /// `--format vlad`): with `--settings`, that file's extractor as `spslam run`
 /// reads it (`SuperPoint.nLevels`, `SuperPoint.precision`, ...); without,
 /// `spslam run`'s defaults ([`ExtractorSettings::default`] on
-/// [`DEFAULT_SUPERPOINT_LEVELS`] levels), with `--features`,
+/// [`DEFAULT_SUPERPOINT_LEVELS`] levels, the stereo and RGB-D default), with `--features`,
 /// `--pyramid-levels`, `--precision` and `--device` applied.
 pub fn run_superpoint_config(args: &TrainArgs) -> Result<ExtractorConfig> {
     let mut e = match &args.settings {
@@ -124,7 +124,9 @@ pub fn run_superpoint_config(args: &TrainArgs) -> Result<ExtractorConfig> {
         e.model = Some(model.clone());
     }
     e.device = args.device;
-    let levels = args.pyramid_levels.unwrap_or(e.superpoint_levels);
+    let levels = args
+        .pyramid_levels
+        .unwrap_or(e.superpoint_levels_for(false));
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     Ok(e.superpoint_config(levels, cores))
 }
