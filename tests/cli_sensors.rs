@@ -337,17 +337,19 @@ fn superpoint_levels_default_to_one_with_a_depth_and_four_without() {
     }
     let data = synth("levels");
     let synth_dataset = format!("synth:{}", data.path().display());
-    for (sensor, extra, levels) in [
-        ("rgbd", None, 1),
-        ("mono", None, 4),
-        ("mono", Some("2"), 2),
-    ] {
+    for (sensor, extra, levels) in [("rgbd", None, 1), ("mono", None, 4), ("mono", Some("2"), 2)] {
         let out = data.path().join(format!("out-{sensor}-{levels}"));
         let mut command = spslam();
         command
             .arg("run")
             .args(["--dataset", &synth_dataset, "--sensor", sensor])
-            .args(["--extractor", "superpoint", "--inline-mapping", "--frames", "2"])
+            .args([
+                "--extractor",
+                "superpoint",
+                "--inline-mapping",
+                "--frames",
+                "2",
+            ])
             .arg("--out")
             .arg(&out);
         if let Some(n) = extra {

@@ -77,12 +77,21 @@ fn superpoint_levels_default_by_sensor_unless_the_settings_say() {
     // pyramid"), whatever ORB's `ORBextractor.nLevels: 8` says.
     let s = SlamSettings::from_file(write("levels_default.yaml", OLD_LAYOUT)).expect("settings");
     assert_eq!(s.extractor.superpoint_levels, None);
-    assert_eq!(s.extractor.superpoint_levels_for(false), DEFAULT_SUPERPOINT_LEVELS);
+    assert_eq!(
+        s.extractor.superpoint_levels_for(false),
+        DEFAULT_SUPERPOINT_LEVELS
+    );
     assert_eq!(
         s.extractor.superpoint_levels_for(true),
         DEFAULT_MONOCULAR_SUPERPOINT_LEVELS
     );
-    assert_eq!((DEFAULT_SUPERPOINT_LEVELS, DEFAULT_MONOCULAR_SUPERPOINT_LEVELS), (1, 4));
+    assert_eq!(
+        (
+            DEFAULT_SUPERPOINT_LEVELS,
+            DEFAULT_MONOCULAR_SUPERPOINT_LEVELS
+        ),
+        (1, 4)
+    );
     // Given: the same for every sensor.
     let text = format!("{OLD_LAYOUT}SuperPoint.nLevels: 2\n");
     let s = SlamSettings::from_file(write("levels_two.yaml", &text)).expect("settings");

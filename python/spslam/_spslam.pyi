@@ -103,8 +103,11 @@ class System:
         inline_mapping: bool = False,
     ) -> None:
         """`sensor`: stereo, rgbd or mono; `extractor`: superpoint or orb;
-        `inline_mapping`: local mapping after each keyframe on the calling
-        thread (deterministic) instead of on its own thread."""
+        `levels`: the extractor's pyramid levels (default: the settings';
+        for SuperPoint without `SuperPoint.nLevels`, 1 for stereo and RGB-D
+        and 4 for mono, as `spslam run`); `inline_mapping`: local mapping
+        after each keyframe on the calling thread (deterministic) instead of
+        on its own thread."""
     def track_stereo(
         self, left: npt.NDArray[np.uint8], right: npt.NDArray[np.uint8], timestamp: float, *, rgb: bool = False
     ) -> Optional[npt.NDArray[np.float64]]:

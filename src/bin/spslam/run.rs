@@ -110,7 +110,8 @@ pub struct RunArgs {
     #[arg(long)]
     no_keyframe_culling: bool,
     /// Pyramid levels for the extractor [default: the settings'
-    /// SuperPoint.nLevels (1 when absent) for SuperPoint, ORBextractor.nLevels for ORB].
+    /// SuperPoint.nLevels for SuperPoint (when absent: 1 for stereo and RGB-D,
+    /// 4 for monocular), ORBextractor.nLevels for ORB].
     #[arg(long)]
     levels: Option<usize>,
     /// SuperPoint network precision: fp32 or int8 [default: the settings' SuperPoint.precision].
