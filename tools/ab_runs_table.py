@@ -10,8 +10,12 @@ inserted, ATE RMSE (SE3; Sim3 for monocular runs), loops, merges.
     python3 tools/ab_runs_table.py --a out/ab/A --b out/ab/B \
         --label-a "plain ratio test" --label-b "rivals beyond the cell"
 
-A third set (`--c`, `--label-c`) adds a column; `--changed-only` keeps the
-runs whose cells differ between the sets (the ATE compared to the digit).
+A third set (`--c`, `--label-c`) adds a column, and any number more
+(`--set LABEL=FOLDER`, repeated; with them `--a` and `--b` may be left
+out); `--changed-only` keeps the runs whose cells differ between the sets
+(the ATE compared to the digit). `--scale-drift` adds a monocular run's
+scale drift (`report.json`'s `scale_drift.ratio`) and `--time` its wall
+time per frame to each cell.
 """
 
 import argparse
@@ -35,7 +39,7 @@ def reports(folder):
     return found
 
 
-def cell(path):
+def cell(path, scale_drift=False, time=False):
     """One run's cell, or a dash when it did not finish."""
     if path is None:
         return "–"
@@ -49,10 +53,16 @@ def cell(path):
     ate = (r.get("evaluation") or {}).get("ate") or {}
     value = ate.get("sim3_rmse" if mono else "se3_rmse")
     ate_text = "no ATE" if value is None else f"{value:.4f} m {'Sim3' if mono else 'SE3'}"
+    extra = ""
+    ratio = (r.get("scale_drift") or {}).get("ratio")
+    if scale_drift and ratio is not None:
+        extra += f", scale drift {100.0 * (ratio - 1.0):+.1f} %"
+    if time and r.get("wall_ms_per_frame") is not None:
+        extra += f", {r['wall_ms_per_frame']:.0f} ms"
     return (
         f"{s['tracked']}/{s['frames']}, {maps} map{'s' if maps != 1 else ''}, "
         f"{s['keyframes_inserted']} KF, {ate_text}, "
-        f"{len(r.get('loops') or [])} loops, {len(r.get('merges') or [])} merges"
+        f"{len(r.get('loops') or [])} loops, {len(r.get('merges') or [])} merges{extra}"
     )
 
 
@@ -88,17 +98,32 @@ def commit():
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--a", required=True, help="the first set's folder")
-    parser.add_argument("--b", required=True, help="the second set's folder")
+    parser.add_argument("--a", help="the first set's folder")
+    parser.add_argument("--b", help="the second set's folder")
     parser.add_argument("--label-a", default="A")
     parser.add_argument("--label-b", default="B")
     parser.add_argument("--c", help="a third set's folder")
     parser.add_argument("--label-c", default="C")
+    parser.add_argument("--set", action="append", default=[], metavar="LABEL=FOLDER",
+                        help="one more set, after --a, --b and --c (repeatable)")
     parser.add_argument("--changed-only", action="store_true",
                         help="only the runs whose cells differ between the sets")
+    parser.add_argument("--scale-drift", action="store_true",
+                        help="add a monocular run's scale drift to its cell")
+    parser.add_argument("--time", action="store_true",
+                        help="add the wall time per frame to each cell")
     args = parser.parse_args()
-    folders = [args.a, args.b] + ([args.c] if args.c else [])
-    labels = [args.label_a, args.label_b] + ([args.label_c] if args.c else [])
+    pairs = [(args.label_a, args.a), (args.label_b, args.b), (args.label_c, args.c)]
+    for item in args.set:
+        label, sep, folder = item.rpartition("=")
+        if not sep or not label or not folder:
+            sys.exit(f"error: --set {item!r}: give LABEL=FOLDER")
+        pairs.append((label, folder))
+    pairs = [(label, folder) for label, folder in pairs if folder]
+    if len(pairs) < 2:
+        sys.exit("error: give at least two sets (--a and --b, or --set LABEL=FOLDER)")
+    labels = [label for label, _ in pairs]
+    folders = [folder for _, folder in pairs]
     sets = [reports(f) for f in folders]
     names = sorted(set().union(*sets))
     if not names:
@@ -108,7 +133,7 @@ def main():
     print("| run | " + " | ".join(labels) + " |")
     print("|---" * (len(labels) + 1) + "|")
     for name in names:
-        cells = [cell(found.get(name)) for found in sets]
+        cells = [cell(found.get(name), args.scale_drift, args.time) for found in sets]
         if args.changed_only and len(set(cells)) == 1:
             continue
         print(f"| {name} | " + " | ".join(cells) + " |")

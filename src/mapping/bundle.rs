@@ -140,11 +140,7 @@ pub(crate) fn solve_bundle(
     abort: &AtomicBool,
     iteration_share: f64,
 ) -> Result<SolvedBundle, SlamError> {
-    let config = if iteration_share < 1.0 {
-        LocalBaConfig::default().with_iteration_share(iteration_share)
-    } else {
-        LocalBaConfig::default()
-    };
+    let config = LocalBaConfig::default().with_iteration_share(iteration_share);
     let report = local_bundle_adjustment_abortable(&mut snapshot.problem, &config, Some(abort))
         .in_stage("local bundle adjustment")?;
     // A cut iteration budget that the solve used up counts as an abort.

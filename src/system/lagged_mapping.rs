@@ -149,10 +149,8 @@ impl LaggedMapping {
             let (finished_at, step) = if next_submitted.is_some_and(|s| s <= start + 1) {
                 (start + 1, LaggedStep::LeftToNext)
             } else {
-                let interrupted_end = self
-                    .head_interrupted
-                    .map(|at| (at + 1).max(start + self.frames_before_bundle()));
                 let bundle_start = start + self.frames_before_bundle();
+                let interrupted_end = self.head_interrupted.map(|at| (at + 1).max(bundle_start));
                 match interrupted_end {
                     Some(end) if end < full => (
                         end,
