@@ -74,8 +74,7 @@ rust-release: build
 # frames, 640x480, exact ground truth), run stereo SLAM with SuperPoint +
 # ANMS on it, print the ATE and write the trajectory plot. SuperPoint runs
 # with the defaults (int8 network; one pyramid level for stereo and RGB-D,
-# four for monocular): about a minute and a half per sensor on a 2-core
-# machine.
+# four for monocular): about a minute per sensor on a 2-core machine.
 DEMO_SEQ := $(OUT)/demo_loop
 demo: SPSLAM_FEATURES = viewer
 demo: build
