@@ -91,6 +91,37 @@ impl GapMotion {
     }
 }
 
+impl GapMotion {
+    /// `T_wc` of the next frame of a gap, at `timestamp`, whose motion
+    /// from the gap's previous frame (or the last tracked one) was
+    /// measured: `T_c,p` by odometry (see `crate::tracking`'s gap
+    /// odometry). Unlike [`Self::coast`] it has no horizon: the step is
+    /// measured, not assumed. The identity before any frame was tracked.
+    pub(super) fn step(&mut self, timestamp: f64, pose_cp: &Se3) -> Se3 {
+        let Some((t_last, p_last)) = self.last else {
+            return Se3::identity();
+        };
+        let (_, p_prev) = self.coasted.unwrap_or((t_last, p_last));
+        let pose = p_prev.compose(&pose_cp.inverse());
+        self.coasted = Some((timestamp, pose));
+        pose
+    }
+
+    /// The next gap frame's `T_wc`: [`Self::step`] when its motion was
+    /// measured, else [`Self::coast`] with the rotation its images gave.
+    pub(super) fn next_gap_pose(
+        &mut self,
+        timestamp: f64,
+        measured_step_cp: Option<&Se3>,
+        measured_rotation_cp: Option<UnitQuaternion<f64>>,
+    ) -> Se3 {
+        match measured_step_cp {
+            Some(step) => self.step(timestamp, step),
+            None => self.coast(timestamp, measured_rotation_cp),
+        }
+    }
+}
+
 /// The correlation two consecutive frames' aligned thumbnails need for
 /// their rotation to be used: an alignment that failed. It is no test of
 /// the same place: on the synthetic block, consecutive frames at 1 m a
@@ -161,6 +192,30 @@ mod tests {
             let error = distance(&motion.coast(t, None), &on_circle(t));
             assert!(error < 1e-12, "t {t}: {error}");
         }
+    }
+
+    #[test]
+    fn measured_steps_chain_from_the_last_tracked_pose_without_a_horizon() {
+        let mut motion = GapMotion::default();
+        assert_eq!(motion.step(0.0, &on_circle(0.1)), Se3::identity());
+        motion.tracked(0.0, on_circle(0.0));
+        motion.tracked(0.1, on_circle(0.1));
+        // The true steps T_c,p of a camera that stops turning and goes
+        // sideways: nothing the velocity would predict.
+        let sideways =
+            |t: f64| on_circle(0.1).compose(&Se3::exp(&Vector6::new(t, 0.0, 0.0, 0.0, 0.0, 0.0)));
+        let mut previous = on_circle(0.1);
+        for k in 1..=30 {
+            let t = 0.1 + 0.1 * f64::from(k);
+            let truth = sideways(t - 0.1);
+            let step_cp = truth.inverse().compose(&previous);
+            let pose = motion.next_gap_pose(t, Some(&step_cp), None);
+            assert!(distance(&pose, &truth) < 1e-9, "frame {k}");
+            previous = truth;
+        }
+        // A frame without a step coasts from the last stepped pose.
+        let coasted = motion.next_gap_pose(3.2, None, None);
+        assert!(distance(&coasted, &previous) < 1e-12);
     }
 
     #[test]

@@ -23,6 +23,7 @@ mod loop_closing_stage;
 mod loop_closing_thread;
 mod loop_driver;
 mod map_files;
+mod odometry_chain;
 mod records;
 mod slam_system;
 mod trajectory;

@@ -82,6 +82,14 @@ pub struct FrameRecord {
     pub gap_rotation: Option<UnitQuaternion<f64>>,
     /// That rotation's angle, degrees.
     pub gap_rotation_deg: Option<f64>,
+    /// For a frame tracking gave no pose, or the first of a new map: its
+    /// motion `T_c,p` from the previous input frame, measured by stereo
+    /// odometry (the trajectory's rows over a gap follow it; it replaces
+    /// `gap_rotation` there).
+    #[serde(skip)]
+    pub gap_step: Option<Se3>,
+    /// That step's refined inliers.
+    pub gap_step_inliers: Option<usize>,
     /// Time per stage.
     pub timings: FrameTimings,
     /// Local mapping's summary when it ran.
@@ -145,6 +153,10 @@ pub struct SlamSummary {
     /// Of `tracked`: frames lost by tracking's rule whose pose a second
     /// start corroborated (tracking itself stayed lost).
     pub corroborated: usize,
+    /// Of `tracked`: frames lost by tracking whose motion from the last
+    /// tracked frame odometry measured, step by step (tracking itself
+    /// stayed lost).
+    pub by_odometry: usize,
     /// Keyframes inserted.
     pub keyframes_inserted: usize,
     /// Live keyframes in all maps.

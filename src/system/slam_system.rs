@@ -27,6 +27,7 @@ use super::lagged_mapping::{LaggedJob, LaggedMapping, LaggedStep};
 use super::local_mapping_thread::{MappingJob, MappingResult, MappingThread, StoppedMapping};
 use super::loop_closing_stage::{LoopClosingStage, LoopLog};
 use super::loop_closing_thread::LoopClosingThread;
+use super::odometry_chain::chain_odometry;
 use super::records::{FrameRecord, FrameTimings, RelativePose};
 
 /// Where loop detection runs: on the tracking thread between frames
@@ -494,6 +495,8 @@ impl SlamSystem {
             relative_pose: None,
             gap_rotation: None,
             gap_rotation_deg: None,
+            gap_step: None,
+            gap_step_inliers: None,
             timings: FrameTimings::default(),
             mapping: None,
             loop_check_running: false,
@@ -615,6 +618,8 @@ impl SlamSystem {
             }),
             gap_rotation,
             gap_rotation_deg: gap_rotation.map(|r| r.angle().to_degrees()),
+            gap_step: outcome.gap_step.map(|s| s.pose_cp),
+            gap_step_inliers: outcome.gap_step.map(|s| s.inliers),
             timings: FrameTimings {
                 extraction_ms,
                 stereo_ms,
@@ -625,10 +630,11 @@ impl SlamSystem {
             mapping,
             loop_check_running,
         });
+        let last = self.records.len() - 1;
+        chain_odometry(&mut self.records, last);
         if matches!(self.mapping, Mapping::Inline(_)) {
             self.close_loops()?;
         }
-        let last = self.records.len() - 1;
         Ok(&self.records[last])
     }
 
@@ -657,12 +663,14 @@ impl SlamSystem {
     /// initialisation's two views, or lost before tracking resumed) in
     /// map `map`: its record gets that pose and `method`.
     fn record_late(&mut self, localised: &LateLocalisation, map: MapIndex, method: TrackingMethod) {
-        if let Some(record) = self
+        let Some(at) = self
             .records
-            .iter_mut()
-            .rev()
-            .find(|r| r.index == localised.index)
-        {
+            .iter()
+            .rposition(|r| r.index == localised.index)
+        else {
+            return;
+        };
+        if let Some(record) = self.records.get_mut(at) {
             record.state = TrackingState::Ok;
             record.method = method;
             record.inliers = localised.inliers;
@@ -673,6 +681,7 @@ impl SlamSystem {
                 pose: localised.relative_pose,
             });
         }
+        chain_odometry(&mut self.records, at);
     }
 
     /// The tracking state now.

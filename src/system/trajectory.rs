@@ -12,6 +12,7 @@ use crate::tracking::{TrackingMethod, TrackingState};
 
 use super::atlas::MapIndex;
 use super::gap_motion::GapMotion;
+use super::odometry_chain::linked;
 use super::records::{FrameTimings, MapSummary, SlamSummary};
 use super::SlamSystem;
 
@@ -98,6 +99,8 @@ impl SlamSystem {
         let mut motion = GapMotion::default();
         let mut previous_frame = None;
         let mut out = Vec::with_capacity(self.records.len());
+        // Whether each row's pose came from its map.
+        let mut from_map = Vec::with_capacity(self.records.len());
         for record in &self.records {
             let mut anchored = None;
             let mut pose = None;
@@ -117,7 +120,11 @@ impl SlamSystem {
                             anchored = Some((rel.map, previous_frame.unwrap_or(record.index)));
                         }
                         motion
-                            .coast(record.timestamp, record.gap_rotation)
+                            .next_gap_pose(
+                                record.timestamp,
+                                record.gap_step.as_ref(),
+                                record.gap_rotation,
+                            )
                             .compose(&in_map.inverse())
                     });
                     let world_pose = anchor.compose(&in_map);
@@ -126,10 +133,47 @@ impl SlamSystem {
                     pose = Some(world_pose);
                 }
             }
-            let pose = pose.unwrap_or_else(|| motion.coast(record.timestamp, record.gap_rotation));
+            from_map.push(pose.is_some());
+            let pose = pose.unwrap_or_else(|| {
+                motion.next_gap_pose(
+                    record.timestamp,
+                    record.gap_step.as_ref(),
+                    record.gap_rotation,
+                )
+            });
             out.push((record.timestamp, pose, anchored));
         }
+        self.chain_odometry_backwards(&from_map, &mut out);
         Ok(out)
+    }
+
+    /// The frames posed by odometry (see [`super::odometry_chain`]) that
+    /// are not joined forwards to a frame with a map pose hang from the
+    /// next frame with one: each is placed by the step the frame after it
+    /// measured, `T_w,c(k) = T_w,c(k+1) · T_c(k+1),c(k)`, from the newest
+    /// back. (Those joined forwards were placed along their steps by the
+    /// forward pass.)
+    fn chain_odometry_backwards(
+        &self,
+        from_map: &[bool],
+        out: &mut [(f64, Se3, Option<(MapIndex, usize)>)],
+    ) {
+        let records = &self.records;
+        let by_odometry = |k: usize| records[k].method == TrackingMethod::Odometry;
+        let mut forwards = vec![false; records.len()];
+        for k in 0..records.len() {
+            forwards[k] = from_map.get(k).copied().unwrap_or(false)
+                || (k > 0 && forwards[k - 1] && by_odometry(k) && linked(records, k - 1));
+        }
+        for k in (0..records.len().saturating_sub(1)).rev() {
+            if !by_odometry(k) || forwards[k] || !linked(records, k) {
+                continue;
+            }
+            let Some(step) = records[k + 1].gap_step else {
+                continue;
+            };
+            out[k].1 = out[k + 1].1.compose(&step);
+        }
     }
 
     /// The live keyframes' `(timestamp, T_wc)` of every map, in the
@@ -215,6 +259,7 @@ impl SlamSystem {
             s.between_initial_views += usize::from(r.method == TrackingMethod::BetweenInitialViews);
             s.localised_after_loss += usize::from(r.method == TrackingMethod::AfterLoss);
             s.corroborated += usize::from(r.method == TrackingMethod::Corroborated);
+            s.by_odometry += usize::from(r.method == TrackingMethod::Odometry);
             s.keyframes_inserted += usize::from(r.keyframe);
             sum.extraction_ms += r.timings.extraction_ms;
             sum.stereo_ms += r.timings.stereo_ms;

@@ -43,6 +43,13 @@ pub enum TrackingMethod {
     /// corroborated (see [`super::corroborate`]): its record has the pose
     /// and says `Ok`; tracking stays lost and the map is not changed.
     Corroborated,
+    /// A lost frame joined to a frame with a pose by a chain of steps
+    /// measured by stereo odometry between consecutive frames (see
+    /// [`super::gap_odometry`]; the run's records chain them, forwards from
+    /// the last tracked frame or backwards from the next one with a pose):
+    /// its record has that pose and says `Ok`; tracking stays lost and the
+    /// map is not changed.
+    Odometry,
     /// No pose.
     None,
 }

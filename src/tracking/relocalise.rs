@@ -99,23 +99,42 @@ pub(crate) fn pnp_ransac(
     rig: &CameraRig,
     iterations: i32,
 ) -> Result<Option<PnpPose>, SlamError> {
-    let mut object = Vector::<Point3f>::new();
-    let mut image = Vector::<Point2f>::new();
+    let mut correspondences = Vec::with_capacity(matches.len());
     let mut used = Vec::with_capacity(matches.len());
     for (m, (i, id)) in matches.iter().enumerate() {
         let (Ok(p), Some(kp)) = (map.map_point(*id), frame.features.keypoints.get(*i)) else {
             continue;
         };
-        object.push(Point3f::new(
-            p.position.x as f32,
-            p.position.y as f32,
-            p.position.z as f32,
-        ));
-        image.push(Point2f::new(kp.x, kp.y));
+        correspondences.push((p.position, [kp.x, kp.y]));
         used.push(m);
     }
-    if object.len() < 6 {
+    let Some(mut pose) = pnp_ransac_points(&correspondences, rig, iterations)? else {
         return Ok(None);
+    };
+    pose.inlier_matches = pose
+        .inlier_matches
+        .iter()
+        .filter_map(|&k| used.get(k).copied())
+        .collect();
+    Ok(Some(pose))
+}
+
+/// [`pnp_ransac`] on plain correspondences: a point (in the frame the pose
+/// maps from) and the pixel that sees it. The pose's inlier indices are
+/// into `correspondences`.
+pub(crate) fn pnp_ransac_points(
+    correspondences: &[(Vector3<f64>, [f32; 2])],
+    rig: &CameraRig,
+    iterations: i32,
+) -> Result<Option<PnpPose>, SlamError> {
+    if correspondences.len() < 6 {
+        return Ok(None);
+    }
+    let mut object = Vector::<Point3f>::with_capacity(correspondences.len());
+    let mut image = Vector::<Point2f>::with_capacity(correspondences.len());
+    for (p, [u, v]) in correspondences {
+        object.push(Point3f::new(p.x as f32, p.y as f32, p.z as f32));
+        image.push(Point2f::new(*u, *v));
     }
     let c = &rig.camera;
     let k = Mat::from_slice_2d(&[[c.fx, 0.0, c.cx], [0.0, c.fy, c.cy], [0.0, 0.0, 1.0]])
@@ -147,7 +166,8 @@ pub(crate) fn pnp_ransac(
     let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::new(axis));
     let inlier_matches = inliers
         .iter()
-        .filter_map(|k| used.get(usize::try_from(k).ok()?).copied())
+        .filter_map(|k| usize::try_from(k).ok())
+        .filter(|&k| k < correspondences.len())
         .collect();
     Ok(Some(PnpPose {
         pose_cw: Se3::new(rotation, t),

@@ -11,6 +11,7 @@ use super::after_loss::{localise_lost_frames, lost_frames_kept, Resumption};
 use super::between_views::{localise_between_views, InitialView};
 use super::corroborate::{corroborated, StartPose};
 use super::frame::Frame;
+use super::gap_odometry::{measure_step, OdometryStep};
 use super::keyframe::{
     initialise_map, insert_keyframe, needs_keyframe, next_near_reference_count, KeyFrameContext,
     KeyFrameDecision,
@@ -49,6 +50,11 @@ pub struct TrackOutcome {
     /// The frames lost before this one that were localised once tracking
     /// resumed with it (see [`super::after_loss`]).
     pub after_loss: Vec<LateLocalisation>,
+    /// For a frame tracking gave no pose, and the first frame of a new map:
+    /// its motion from the input frame before it, measured by stereo
+    /// odometry when the two frames' depths allow (see
+    /// [`super::gap_odometry`]).
+    pub gap_step: Option<OdometryStep>,
     /// A monocular keyframe was wanted while local mapping was busy: the
     /// caller interrupts mapping's local BA (ORB-SLAM3's `InterruptBA`), so
     /// its triangulation is done sooner (see the keyframe rule).
@@ -105,6 +111,10 @@ pub struct Tracker {
     lost_frames: Vec<Frame>,
     /// Milliseconds the last `track` waited for the map's locks.
     lock_wait_ms: f64,
+    /// The camera's motion per frame over the current gap (`T_c,p`): the
+    /// velocity when it began, then each measured step; what the next
+    /// gap frame's odometry predicts from.
+    gap_velocity: Option<Se3>,
 }
 
 /// `frame`'s pose relative to `reference` (`T_c,ref`); `None` without one.
@@ -238,6 +248,7 @@ impl Tracker {
             lock_wait_ms: 0.0,
             mono_init: MonoInitialiser::default(),
             lost_frames: Vec::new(),
+            gap_velocity: None,
         }
     }
 
@@ -275,6 +286,7 @@ impl Tracker {
     pub fn fresh_after_loss(&mut self) -> Self {
         let mut tracker = self.fresh();
         tracker.lost_frames = std::mem::take(&mut self.lost_frames);
+        tracker.gap_velocity = self.gap_velocity;
         tracker
     }
 
@@ -345,10 +357,60 @@ impl Tracker {
         mapping_queue: usize,
     ) -> Result<TrackOutcome, SlamError> {
         self.lock_wait_ms = 0.0;
-        if self.state == TrackingState::NotInitialised {
-            let mut map = self.timed(|| map.write())?;
-            return self.initialise(frame, &mut map);
+        let index = frame.index;
+        if self.state == TrackingState::Ok {
+            self.gap_velocity = self.velocity;
         }
+        let mut outcome = if self.state == TrackingState::NotInitialised {
+            let mut map = self.timed(|| map.write())?;
+            self.initialise(frame, &mut map)?
+        } else {
+            self.track_in_map(frame, map, mapping_queue)?
+        };
+        if outcome.relative_pose.is_none() {
+            // A frame without a pose is the newest kept lost frame (a
+            // monocular initialiser keeps its own, which have no depth).
+            let current = self.lost_frames.iter().rev().find(|f| f.index == index);
+            outcome.gap_step = match current {
+                Some(current) => self.measure_gap_step(current)?,
+                None => None,
+            };
+            if let Some(step) = outcome.gap_step {
+                self.gap_velocity = Some(step.pose_cp);
+            }
+        }
+        Ok(outcome)
+    }
+
+    /// The motion of `current` from the input frame before it (the last
+    /// tracked frame or the newest kept lost one), by stereo odometry;
+    /// `None` for a monocular camera or without that frame.
+    fn measure_gap_step(&self, current: &Frame) -> Result<Option<OdometryStep>, SlamError> {
+        if self.rig.sensor == Sensor::Monocular || current.index == 0 {
+            return Ok(None);
+        }
+        let wanted = current.index - 1;
+        let previous = self
+            .lost_frames
+            .iter()
+            .rev()
+            .chain(self.last_frame.as_ref())
+            .find(|f| f.index == wanted);
+        let Some(previous) = previous else {
+            return Ok(None);
+        };
+        let velocity = self.gap_velocity.as_ref();
+        let prediction = image_rotation_velocity(current, previous, velocity).or(self.gap_velocity);
+        measure_step(previous, current, &self.rig, prediction.as_ref())
+    }
+
+    /// [`Self::track`] once the map exists.
+    fn track_in_map(
+        &mut self,
+        frame: Frame,
+        map: &SharedMap,
+        mapping_queue: usize,
+    ) -> Result<TrackOutcome, SlamError> {
         let (frame, mut outcome, wants_keyframe) = {
             let map = self.timed(|| map.read())?;
             self.track_under_read_lock(frame, &map, mapping_queue)?
@@ -533,6 +595,7 @@ impl Tracker {
                 earlier_keyframe: None,
                 between_views: Vec::new(),
                 after_loss: Vec::new(),
+                gap_step: None,
                 interrupt_mapping: false,
             };
             if corroborated_pose.is_none() {
@@ -609,6 +672,7 @@ impl Tracker {
             earlier_keyframe: None,
             between_views: Vec::new(),
             after_loss,
+            gap_step: None,
             interrupt_mapping: false,
         };
         Ok((Some(frame), outcome, wants_keyframe))
@@ -702,6 +766,7 @@ impl Tracker {
                 earlier_keyframe: None,
                 between_views: Vec::new(),
                 after_loss: Vec::new(),
+                gap_step: None,
                 interrupt_mapping: false,
             });
         };
@@ -717,6 +782,13 @@ impl Tracker {
                 index: frame.index,
                 pose_cw: frame.pose_cw,
             },
+        };
+        // The first frame of a map started after a loss: its motion from
+        // the lost frame before it anchors the new map in the trajectory.
+        let gap_step = if self.lost_frames.is_empty() {
+            None
+        } else {
+            self.measure_gap_step(&frame)?
         };
         let after_loss = self.localise_lost(resumed, map)?;
         self.state = TrackingState::Ok;
@@ -735,6 +807,7 @@ impl Tracker {
             earlier_keyframe,
             between_views,
             after_loss,
+            gap_step,
             interrupt_mapping: false,
         })
     }

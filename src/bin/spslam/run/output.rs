@@ -243,6 +243,12 @@ fn localised_late_text(s: &SlamSummary) -> String {
             s.corroborated
         ));
     }
+    if s.by_odometry > 0 {
+        parts.push(format!(
+            "{} lost by tracking, their motion measured by odometry",
+            s.by_odometry
+        ));
+    }
     if parts.is_empty() {
         String::new()
     } else {

@@ -1,0 +1,288 @@
+//! A lost frame's motion from the input frame before it, measured by
+//! stereo (or depth) odometry.
+//!
+//! When a frame cannot be tracked against the map, its images still say
+//! how the camera moved since the frame before. With a depth per keypoint
+//! (stereo or RGB-D), the previous frame's close keypoints are 3-D points
+//! in its camera; searched around where the predicted motion projects them
+//! (or, failing that, matched by descriptor over the whole image and put
+//! through PnP RANSAC) they give this frame's pose relative to that
+//! camera, refined with this frame's own stereo observations. This is ORB-SLAM3's visual
+//! odometry (`Tracking::UpdateLastFrame`'s temporary points from the last
+//! frame's depths, used in localisation mode when too few map points are
+//! found: `mbVO`), without the map. It helps where the map cannot: in a
+//! fast turn with motion blur, consecutive blurred frames share their
+//! blur and match each other far better than the sharp keyframes before
+//! the turn.
+//!
+//! The step is measured only; the map is not changed and tracking stays
+//! lost (relocalisation is tried on the frame as before). The run's
+//! records chain the steps (`crate::system`): a lost frame joined by
+//! steps to a frame with a pose, before or after it, gets its pose that
+//! way, and a map started after a loss is anchored where the measured
+//! motion puts its first frame instead of where the last velocity would.
+//! A step needs [`MIN_STEP_INLIERS`] refined inliers: it changes only the
+//! frame's record, like the frames localised after a loss.
+
+use nalgebra::Vector3;
+
+use crate::camera::CameraRig;
+use crate::error::{MapContext, SlamError};
+use crate::matching::{
+    match_brute_force_spaced, search_by_projection_filtered, CandidateFilter, MatchParams,
+    ProjectedPoint, ProjectionParams, TrainLayout,
+};
+use crate::optim::pose_only::{optimise_pose, PoseCorrespondence, PoseOnlyConfig};
+use crate::optim::{LieGroup, Se3};
+
+use super::frame::Frame;
+use super::pose::frame_observation;
+use super::relocalise::{pnp_ransac_points, PNP_RANSAC_ITERATIONS};
+
+/// Refined inliers a step needs: local-map tracking's 30 (ORB-SLAM3's
+/// `TrackLocalMap`), which spslam asks of every pose that goes into a
+/// frame's record without changing the map (the frames localised after a
+/// loss, a corroborated frame).
+pub const MIN_STEP_INLIERS: usize = 30;
+
+/// Lowe's ratio for the two frames' descriptors: ORB-SLAM3's
+/// relocalisation ratio (0.75 in `Relocalization`'s `SearchByBoW`).
+const STEP_MATCH_RATIO: f32 = 0.75;
+
+/// A frame's motion from the frame before it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OdometryStep {
+    /// `T_c,p`: the previous frame's camera to this frame's.
+    pub pose_cp: Se3,
+    /// Refined inliers.
+    pub inliers: usize,
+}
+
+/// The motion from `previous` to `current` (`T_c,p`) when their keypoints
+/// with a depth in `previous` (closer than the rig's stereo limit) give a
+/// pose with [`MIN_STEP_INLIERS`] refined inliers; `None`
+/// otherwise (a monocular frame, too few matches, no RANSAC pose).
+///
+/// With a `prediction` of the step (the last velocity, turned by the
+/// rotation the two frames' thumbnails show), the points are first
+/// searched around their predicted projections ([`guided_step`]: ORB-SLAM3's
+/// `SearchByProjection` of the last frame's points); where that leaves too
+/// few inliers, by descriptor over the whole image and PnP RANSAC. The
+/// guided search is what finds the first frame of a blurred turn: against
+/// the sharp frame before it, few descriptors pass a ratio test over the
+/// whole image, but most lie where the prediction puts them.
+pub(crate) fn measure_step(
+    previous: &Frame,
+    current: &Frame,
+    rig: &CameraRig,
+    prediction: Option<&Se3>,
+) -> Result<Option<OdometryStep>, SlamError> {
+    let limit = rig.stereo_depth_limit();
+    let rows: Vec<usize> = (0..previous.len())
+        .filter(|&i| previous.depth(i).is_some())
+        .collect();
+    if rows.len() < MIN_STEP_INLIERS {
+        return Ok(None);
+    }
+    let mut keep = vec![false; previous.len()];
+    for &i in &rows {
+        keep[i] = true;
+    }
+    let mut train = previous.features.descriptors.clone();
+    train.retain_rows(|i| keep[i]);
+    let cell = previous.descriptor_cell.unwrap_or(0.0);
+    let mut positions = Vec::with_capacity(rows.len());
+    let mut rival_distances = Vec::with_capacity(rows.len());
+    let mut points = Vec::with_capacity(rows.len());
+    for &i in &rows {
+        let (Some(kp), Some(depth)) = (previous.features.keypoints.get(i), previous.depth(i))
+        else {
+            return Ok(None);
+        };
+        let scale = usize::try_from(kp.octave)
+            .ok()
+            .and_then(|o| previous.scales.scale_factors.get(o))
+            .copied()
+            .unwrap_or(1.0);
+        positions.push([kp.x, kp.y]);
+        rival_distances.push(cell * scale);
+        points.push(rig.unproject(f64::from(kp.x), f64::from(kp.y), depth));
+    }
+    if let Some(predicted) = prediction {
+        let guided = guided_step(previous, current, rig, (&rows, &points), predicted)?;
+        if guided.is_some() {
+            return Ok(guided);
+        }
+    }
+    let layout = (cell > 0.0).then_some(TrainLayout {
+        positions: &positions,
+        min_rival_distance: &rival_distances,
+    });
+    let matches = match_brute_force_spaced(
+        &current.features.descriptors,
+        &train,
+        MatchParams {
+            ratio: Some(STEP_MATCH_RATIO),
+            max_distance: current.distance_thresholds.high,
+            mutual: true,
+        },
+        layout,
+    )
+    .in_stage("odometry matching")?;
+    if matches.len() < MIN_STEP_INLIERS {
+        tracing::debug!(
+            frame = current.index,
+            previous = previous.index,
+            rows = rows.len(),
+            matches = matches.len(),
+            "gap odometry: too few matches"
+        );
+        return Ok(None);
+    }
+    // (point in the previous camera, this frame's keypoint index)
+    let pairs: Vec<(Vector3<f64>, usize)> = matches
+        .iter()
+        .filter_map(|m| Some((*points.get(m.train)?, m.query)))
+        .collect();
+    let correspondences: Vec<(Vector3<f64>, [f32; 2])> = pairs
+        .iter()
+        .filter_map(|&(p, i)| {
+            let kp = current.features.keypoints.get(i)?;
+            Some((p, [kp.x, kp.y]))
+        })
+        .collect();
+    let Some(start) = pnp_ransac_points(&correspondences, rig, PNP_RANSAC_ITERATIONS)? else {
+        return Ok(None);
+    };
+    if start.inliers() < MIN_STEP_INLIERS {
+        return Ok(None);
+    }
+    let refined: Vec<PoseCorrespondence> = start
+        .inlier_matches
+        .iter()
+        .filter_map(|&k| {
+            let &(point, i) = pairs.get(k)?;
+            Some(PoseCorrespondence {
+                point,
+                observation: frame_observation(current, i, limit)?,
+            })
+        })
+        .collect();
+    let step = refine_step(&start.pose_cw, &refined, rig)?;
+    tracing::debug!(
+        frame = current.index,
+        previous = previous.index,
+        matches = matches.len(),
+        ransac_inliers = start.inliers(),
+        inliers = step.map(|s| s.inliers),
+        "gap odometry by descriptors"
+    );
+    Ok(step.filter(|s| s.inliers >= MIN_STEP_INLIERS))
+}
+
+/// The search window around a predicted projection, level-0 pixels at
+/// octave 0: ORB-SLAM3's motion-model window for monocular and RGB-D
+/// cameras (`th = 15`), wider than its stereo one (7) because the
+/// prediction over a gap is rougher; doubled when it finds too few.
+const GUIDED_RADIUS: f32 = 15.0;
+/// The ratio of the guided search (ORB-SLAM3's `SearchByProjection` of
+/// the last frame: 0.9).
+const GUIDED_RATIO: f32 = 0.9;
+
+/// The step from the previous frame's points (`rows`, with `points` their
+/// positions in its camera) searched around their projections at the
+/// `predicted` step, then refined; `None` without enough inliers.
+fn guided_step(
+    previous: &Frame,
+    current: &Frame,
+    rig: &CameraRig,
+    (rows, points): (&[usize], &[Vector3<f64>]),
+    predicted: &Se3,
+) -> Result<Option<OdometryStep>, SlamError> {
+    let mut projected = Vec::with_capacity(rows.len());
+    let mut sources = Vec::with_capacity(rows.len());
+    for (&i, point) in rows.iter().zip(points) {
+        let Some(uvr) = rig.project_in_image(&predicted.transform_point(point)) else {
+            continue;
+        };
+        let (Some(kp), Some(descriptor)) = (
+            previous.features.keypoints.get(i),
+            previous.features.descriptors.row(i),
+        ) else {
+            continue;
+        };
+        projected.push(ProjectedPoint {
+            u: uvr.x as f32,
+            v: uvr.y as f32,
+            predicted_octave: kp.octave,
+            descriptor,
+            u_right: None,
+        });
+        sources.push(*point);
+    }
+    let mut matches = Vec::new();
+    for radius in [GUIDED_RADIUS, 2.0 * GUIDED_RADIUS] {
+        matches = search_by_projection_filtered(
+            &projected,
+            &current.features,
+            &current.grid,
+            &current.scales.scale_factors,
+            ProjectionParams {
+                radius,
+                octaves_below: 1,
+                octaves_above: 1,
+                ratio: Some(GUIDED_RATIO),
+                max_distance: current.distance_thresholds.high,
+                min_rival_distance: current.descriptor_cell.unwrap_or(0.0),
+            },
+            CandidateFilter::default(),
+        )
+        .in_stage("odometry search by projection")?;
+        if matches.len() >= MIN_STEP_INLIERS {
+            break;
+        }
+    }
+    let limit = rig.stereo_depth_limit();
+    let correspondences: Vec<PoseCorrespondence> = matches
+        .iter()
+        .filter_map(|m| {
+            Some(PoseCorrespondence {
+                point: *sources.get(m.query)?,
+                observation: frame_observation(current, m.train, limit)?,
+            })
+        })
+        .collect();
+    let step = if correspondences.len() >= MIN_STEP_INLIERS {
+        refine_step(predicted, &correspondences, rig)?
+    } else {
+        None
+    };
+    tracing::debug!(
+        frame = current.index,
+        previous = previous.index,
+        projected = projected.len(),
+        matches = matches.len(),
+        inliers = step.map(|s| s.inliers),
+        "gap odometry by projection"
+    );
+    Ok(step.filter(|s| s.inliers >= MIN_STEP_INLIERS))
+}
+
+/// Pose-only refinement of a step from `start` (ORB-SLAM3's
+/// `PoseOptimization`); `None` with too few correspondences to run it.
+fn refine_step(
+    start: &Se3,
+    correspondences: &[PoseCorrespondence],
+    rig: &CameraRig,
+) -> Result<Option<OdometryStep>, SlamError> {
+    let config = PoseOnlyConfig::default();
+    if correspondences.len() < config.min_correspondences {
+        return Ok(None);
+    }
+    let result = optimise_pose(&rig.camera, start, correspondences, &config)
+        .in_stage("odometry pose refinement")?;
+    Ok(Some(OdometryStep {
+        pose_cp: result.pose,
+        inliers: result.inlier_count,
+    }))
+}
