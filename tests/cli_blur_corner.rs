@@ -16,7 +16,7 @@
 
 mod common;
 
-use common::cli::{frames_lost_and_maps, synth_then_run};
+use common::cli::{frames_lost_and_maps, synth_then_run, INLINE_SUPERPOINT_ANMS};
 use common::temp_dir::TempDir;
 use spslam::eval::read_kitti;
 
@@ -41,13 +41,7 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
         dir.path(),
         &["--scene", "loop", "--blur", "6", "--frames", &frames],
         &dataset,
-        &[
-            "--inline-mapping",
-            "--extractor",
-            "superpoint",
-            "--anms",
-            "kdtree",
-        ],
+        &INLINE_SUPERPOINT_ANMS,
     );
     let (records, lost, maps) = frames_lost_and_maps(&report);
     assert_eq!(records.len(), FRAMES);

@@ -17,7 +17,7 @@
 
 mod common;
 
-use common::cli::{frames_lost_and_maps, synth_then_run};
+use common::cli::{frames_lost_and_maps, synth_then_run, INLINE_SUPERPOINT_ANMS};
 use common::temp_dir::TempDir;
 
 /// Frames run: to just past the third corner (frames 134–143).
@@ -42,13 +42,7 @@ fn the_dim_laps_third_corner_is_tracked_in_one_map_in_rgbd() {
             &frames,
         ],
         &dataset,
-        &[
-            "--inline-mapping",
-            "--extractor",
-            "superpoint",
-            "--anms",
-            "kdtree",
-        ],
+        &INLINE_SUPERPOINT_ANMS,
     );
     let (records, lost, maps) = frames_lost_and_maps(&report);
     assert_eq!(records.len(), FRAMES);

@@ -22,7 +22,7 @@
 
 mod common;
 
-use common::cli::{frames_lost_and_maps, synth_then_run};
+use common::cli::{frames_lost_and_maps, synth_then_run, INLINE_SUPERPOINT_ANMS};
 use common::temp_dir::TempDir;
 
 /// Frames run: to just past the first corner (frames 21–28).
@@ -45,15 +45,7 @@ fn assert_tracked_in_one_map(sensor: &str) {
             &frames,
         ],
         &dataset,
-        &[
-            "--sensor",
-            sensor,
-            "--inline-mapping",
-            "--extractor",
-            "superpoint",
-            "--anms",
-            "kdtree",
-        ],
+        &[&["--sensor", sensor][..], &INLINE_SUPERPOINT_ANMS].concat(),
     );
     let (records, lost, maps) = frames_lost_and_maps(&report);
     assert_eq!(records.len(), FRAMES);

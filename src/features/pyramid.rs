@@ -44,6 +44,15 @@ impl ScaleTables {
     pub fn n_levels(&self) -> usize {
         self.scale_factors.len()
     }
+
+    /// The scale factor of a keypoint's `octave`; `None` outside the
+    /// pyramid.
+    pub fn scale_at(&self, octave: i32) -> Option<f32> {
+        usize::try_from(octave)
+            .ok()
+            .and_then(|o| self.scale_factors.get(o))
+            .copied()
+    }
 }
 
 /// ORB-SLAM3's `mnFeaturesPerLevel`: a geometric series over the levels, the

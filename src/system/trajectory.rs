@@ -16,6 +16,10 @@ use super::odometry_chain::linked;
 use super::records::{FrameTimings, MapSummary, SlamSummary};
 use super::SlamSystem;
 
+/// One trajectory row: `(timestamp, T_wc, (map, anchor frame) for a
+/// map's first pose)`.
+type AnchoredRow = (f64, Se3, Option<(MapIndex, usize)>);
+
 /// Tracked frames the camera's speed at a handover is taken over.
 const HANDOVER_SPEED_FRAMES: usize = 10;
 
@@ -92,8 +96,7 @@ impl SlamSystem {
     }
 
     /// `(timestamp, T_wc, (map, anchor frame) for a map's first pose)` per record.
-    #[allow(clippy::type_complexity)]
-    fn anchored_poses(&self) -> Result<Vec<(f64, Se3, Option<(MapIndex, usize)>)>, SlamError> {
+    fn anchored_poses(&self) -> Result<Vec<AnchoredRow>, SlamError> {
         // Map → T_world,map.
         let mut anchors: BTreeMap<MapIndex, Se3> = BTreeMap::new();
         let mut motion = GapMotion::default();
@@ -153,11 +156,7 @@ impl SlamSystem {
     /// measured, `T_w,c(k) = T_w,c(k+1) · T_c(k+1),c(k)`, from the newest
     /// back. (Those joined forwards were placed along their steps by the
     /// forward pass.)
-    fn chain_odometry_backwards(
-        &self,
-        from_map: &[bool],
-        out: &mut [(f64, Se3, Option<(MapIndex, usize)>)],
-    ) {
+    fn chain_odometry_backwards(&self, from_map: &[bool], out: &mut [AnchoredRow]) {
         let records = &self.records;
         let by_odometry = |k: usize| records[k].method == TrackingMethod::Odometry;
         let mut forwards = vec![false; records.len()];

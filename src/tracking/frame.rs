@@ -62,10 +62,7 @@ impl Frame {
         rig: &CameraRig,
     ) -> Self {
         for (kp, st) in features.keypoints.iter_mut().zip(stereo.iter_mut()) {
-            let Some(&scale) = usize::try_from(kp.octave)
-                .ok()
-                .and_then(|o| scales.scale_factors.get(o))
-            else {
+            let Some(scale) = scales.scale_at(kp.octave) else {
                 continue;
             };
             let offset = level_to_base_offset(scale);

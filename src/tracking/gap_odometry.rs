@@ -99,11 +99,7 @@ pub(crate) fn measure_step(
         else {
             return Ok(None);
         };
-        let scale = usize::try_from(kp.octave)
-            .ok()
-            .and_then(|o| previous.scales.scale_factors.get(o))
-            .copied()
-            .unwrap_or(1.0);
+        let scale = previous.scales.scale_at(kp.octave).unwrap_or(1.0);
         positions.push([kp.x, kp.y]);
         rival_distances.push(cell * scale);
         points.push(rig.unproject(f64::from(kp.x), f64::from(kp.y), depth));
@@ -169,15 +165,31 @@ pub(crate) fn measure_step(
         })
         .collect();
     let step = refine_step(&start.pose_cw, &refined, rig)?;
+    Ok(accepted(
+        step,
+        (current, previous),
+        matches.len(),
+        "descriptors",
+    ))
+}
+
+/// A refined step when it has [`MIN_STEP_INLIERS`], logged with how it
+/// was found (`by`: `"projection"` or `"descriptors"`) from `matches`.
+fn accepted(
+    step: Option<OdometryStep>,
+    (current, previous): (&Frame, &Frame),
+    matches: usize,
+    by: &'static str,
+) -> Option<OdometryStep> {
     tracing::debug!(
         frame = current.index,
         previous = previous.index,
-        matches = matches.len(),
-        ransac_inliers = start.inliers(),
+        matches,
         inliers = step.map(|s| s.inliers),
-        "gap odometry by descriptors"
+        by,
+        "gap odometry"
     );
-    Ok(step.filter(|s| s.inliers >= MIN_STEP_INLIERS))
+    step.filter(|s| s.inliers >= MIN_STEP_INLIERS)
 }
 
 /// The search window around a predicted projection, level-0 pixels at
@@ -257,15 +269,12 @@ fn guided_step(
     } else {
         None
     };
-    tracing::debug!(
-        frame = current.index,
-        previous = previous.index,
-        projected = projected.len(),
-        matches = matches.len(),
-        inliers = step.map(|s| s.inliers),
-        "gap odometry by projection"
-    );
-    Ok(step.filter(|s| s.inliers >= MIN_STEP_INLIERS))
+    Ok(accepted(
+        step,
+        (current, previous),
+        matches.len(),
+        "projection",
+    ))
 }
 
 /// Pose-only refinement of a step from `start` (ORB-SLAM3's

@@ -200,11 +200,7 @@ fn match_seen(
         ids.push(id);
         match keypoint {
             Some(k) => {
-                let scale = usize::try_from(k.octave)
-                    .ok()
-                    .and_then(|o| frame.scales.scale_factors.get(o))
-                    .copied()
-                    .unwrap_or(1.0);
+                let scale = frame.scales.scale_at(k.octave).unwrap_or(1.0);
                 positions.push([k.x, k.y]);
                 rival_distances.push(cell * scale);
             }

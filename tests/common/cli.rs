@@ -2,6 +2,17 @@
 
 use std::process::{Command, Output};
 
+/// `spslam run` arguments: local mapping inline (deterministic),
+/// SuperPoint + ANMS with the defaults.
+#[allow(dead_code)]
+pub const INLINE_SUPERPOINT_ANMS: [&str; 5] = [
+    "--inline-mapping",
+    "--extractor",
+    "superpoint",
+    "--anms",
+    "kdtree",
+];
+
 /// A command for the `spslam` binary Cargo built for the tests.
 pub fn spslam() -> Command {
     Command::new(env!("CARGO_BIN_EXE_spslam"))
