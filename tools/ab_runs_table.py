@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A side-by-side markdown table of two sets of `spslam run` reports.
+"""A side-by-side markdown table of sets of `spslam run` reports.
 
 Each set is a folder holding one sub-folder per run with its `report.json`
 (`spslam run --out SET/NAME`, or `spslam evaluate --out SET`, whose runs lie
@@ -14,8 +14,9 @@ A third set (`--c`, `--label-c`) adds a column, and any number more
 (`--set LABEL=FOLDER`, repeated; with them `--a` and `--b` may be left
 out); `--changed-only` keeps the runs whose cells differ between the sets
 (the ATE compared to the digit). `--scale-drift` adds a monocular run's
-scale drift (`report.json`'s `scale_drift.ratio`) and `--time` its wall
-time per frame to each cell.
+scale drift (`report.json`'s `scale_drift.ratio`), `--time` its wall
+time per frame and `--posed-late` how many of its tracked frames were
+localised after a loss or posed by odometry to each cell.
 """
 
 import argparse
@@ -39,7 +40,7 @@ def reports(folder):
     return found
 
 
-def cell(path, scale_drift=False, time=False):
+def cell(path, scale_drift=False, time=False, posed_late=False):
     """One run's cell, or a dash when it did not finish."""
     if path is None:
         return "–"
@@ -59,6 +60,9 @@ def cell(path, scale_drift=False, time=False):
         extra += f", scale drift {100.0 * (ratio - 1.0):+.1f} %"
     if time and r.get("wall_ms_per_frame") is not None:
         extra += f", {r['wall_ms_per_frame']:.0f} ms"
+    if posed_late:
+        extra += (f" ({s.get('localised_after_loss', 0)} after a loss,"
+                  f" {s.get('by_odometry', 0)} by odometry)")
     return (
         f"{s['tracked']}/{s['frames']}, {maps} map{'s' if maps != 1 else ''}, "
         f"{s['keyframes_inserted']} KF, {ate_text}, "
@@ -108,10 +112,15 @@ def main():
                         help="one more set, after --a, --b and --c (repeatable)")
     parser.add_argument("--changed-only", action="store_true",
                         help="only the runs whose cells differ between the sets")
+    parser.add_argument("--common-only", action="store_true",
+                        help="only the runs every set has")
     parser.add_argument("--scale-drift", action="store_true",
                         help="add a monocular run's scale drift to its cell")
     parser.add_argument("--time", action="store_true",
                         help="add the wall time per frame to each cell")
+    parser.add_argument("--posed-late", action="store_true",
+                        help="add how many tracked frames were localised after a loss "
+                             "and how many posed by odometry")
     args = parser.parse_args()
     pairs = [(args.label_a, args.a), (args.label_b, args.b), (args.label_c, args.c)]
     for item in args.set:
@@ -120,8 +129,8 @@ def main():
             sys.exit(f"error: --set {item!r}: give LABEL=FOLDER")
         pairs.append((label, folder))
     pairs = [(label, folder) for label, folder in pairs if folder]
-    if len(pairs) < 2:
-        sys.exit("error: give at least two sets (--a and --b, or --set LABEL=FOLDER)")
+    if not pairs:
+        sys.exit("error: give a set (--a, or --set LABEL=FOLDER; two or more side by side)")
     labels = [label for label, _ in pairs]
     folders = [folder for _, folder in pairs]
     sets = [reports(f) for f in folders]
@@ -133,8 +142,11 @@ def main():
     print("| run | " + " | ".join(labels) + " |")
     print("|---" * (len(labels) + 1) + "|")
     for name in names:
-        cells = [cell(found.get(name), args.scale_drift, args.time) for found in sets]
+        cells = [cell(found.get(name), args.scale_drift, args.time, args.posed_late)
+                 for found in sets]
         if args.changed_only and len(set(cells)) == 1:
+            continue
+        if args.common_only and any(name not in found for found in sets):
             continue
         print(f"| {name} | " + " | ".join(cells) + " |")
 
