@@ -3,7 +3,7 @@
 //!
 //! When a frame cannot be tracked against the map, its images still say
 //! how the camera moved since the frame before. With a depth per keypoint
-//! (stereo or RGB-D), the previous frame's close keypoints are 3-D points
+//! (stereo or RGB-D), the previous frame's keypoints are 3-D points
 //! in its camera; searched around where the predicted motion projects them
 //! (or, failing that, matched by descriptor over the whole image and put
 //! through PnP RANSAC) they give this frame's pose relative to that
@@ -59,50 +59,34 @@ pub struct OdometryStep {
 }
 
 /// The motion from `previous` to `current` (`T_c,p`) when their keypoints
-/// with a depth in `previous` (closer than the rig's stereo limit) give a
-/// pose with [`MIN_STEP_INLIERS`] refined inliers; `None`
-/// otherwise (a monocular frame, too few matches, no RANSAC pose).
+/// with a depth in `previous` give a pose with [`MIN_STEP_INLIERS`]
+/// refined inliers; `None` otherwise (too few matches, no RANSAC pose).
 ///
 /// With a `prediction` of the step (the last velocity, turned by the
 /// rotation the two frames' thumbnails show), the points are first
 /// searched around their predicted projections ([`guided_step`]: ORB-SLAM3's
 /// `SearchByProjection` of the last frame's points); where that leaves too
-/// few inliers, by descriptor over the whole image and PnP RANSAC. The
-/// guided search is what finds the first frame of a blurred turn: against
-/// the sharp frame before it, few descriptors pass a ratio test over the
-/// whole image, but most lie where the prediction puts them.
+/// few inliers, by descriptor over the whole image and PnP RANSAC
+/// ([`matched_step`]). The guided search is what finds the first frame of
+/// a blurred turn: against the sharp frame before it, few descriptors pass
+/// a ratio test over the whole image, but most lie where the prediction
+/// puts them.
 pub(crate) fn measure_step(
     previous: &Frame,
     current: &Frame,
     rig: &CameraRig,
     prediction: Option<&Se3>,
 ) -> Result<Option<OdometryStep>, SlamError> {
-    let limit = rig.stereo_depth_limit();
-    let rows: Vec<usize> = (0..previous.len())
-        .filter(|&i| previous.depth(i).is_some())
-        .collect();
+    // The previous frame's keypoints with a depth, and their points in its camera.
+    let (rows, points): (Vec<usize>, Vec<Vector3<f64>>) = (0..previous.len())
+        .filter_map(|i| {
+            let kp = previous.features.keypoints.get(i)?;
+            let depth = previous.depth(i)?;
+            Some((i, rig.unproject(f64::from(kp.x), f64::from(kp.y), depth)))
+        })
+        .unzip();
     if rows.len() < MIN_STEP_INLIERS {
         return Ok(None);
-    }
-    let mut keep = vec![false; previous.len()];
-    for &i in &rows {
-        keep[i] = true;
-    }
-    let mut train = previous.features.descriptors.clone();
-    train.retain_rows(|i| keep[i]);
-    let cell = previous.descriptor_cell.unwrap_or(0.0);
-    let mut positions = Vec::with_capacity(rows.len());
-    let mut rival_distances = Vec::with_capacity(rows.len());
-    let mut points = Vec::with_capacity(rows.len());
-    for &i in &rows {
-        let (Some(kp), Some(depth)) = (previous.features.keypoints.get(i), previous.depth(i))
-        else {
-            return Ok(None);
-        };
-        let scale = previous.scales.scale_at(kp.octave).unwrap_or(1.0);
-        positions.push([kp.x, kp.y]);
-        rival_distances.push(cell * scale);
-        points.push(rig.unproject(f64::from(kp.x), f64::from(kp.y), depth));
     }
     if let Some(predicted) = prediction {
         let guided = guided_step(previous, current, rig, (&rows, &points), predicted)?;
@@ -110,6 +94,34 @@ pub(crate) fn measure_step(
             return Ok(guided);
         }
     }
+    matched_step(previous, current, rig, (&rows, &points))
+}
+
+/// The step from the previous frame's points (`rows`, with `points` their
+/// positions in its camera) matched by descriptor over the whole image
+/// (ratio and mutual check, the rival test beyond the descriptor cell as
+/// in tracking's descriptor matching), a PnP RANSAC pose, then refined.
+fn matched_step(
+    previous: &Frame,
+    current: &Frame,
+    rig: &CameraRig,
+    (rows, points): (&[usize], &[Vector3<f64>]),
+) -> Result<Option<OdometryStep>, SlamError> {
+    let mut keep = vec![false; previous.len()];
+    for &i in rows {
+        keep[i] = true;
+    }
+    let mut train = previous.features.descriptors.clone();
+    train.retain_rows(|i| keep[i]);
+    let cell = previous.descriptor_cell.unwrap_or(0.0);
+    let (positions, rival_distances): (Vec<[f32; 2]>, Vec<f32>) = rows
+        .iter()
+        .filter_map(|&i| previous.features.keypoints.get(i))
+        .map(|kp| {
+            let scale = previous.scales.scale_at(kp.octave).unwrap_or(1.0);
+            ([kp.x, kp.y], cell * scale)
+        })
+        .unzip();
     let layout = (cell > 0.0).then_some(TrainLayout {
         positions: &positions,
         min_rival_distance: &rival_distances,
@@ -126,14 +138,12 @@ pub(crate) fn measure_step(
     )
     .in_stage("odometry matching")?;
     if matches.len() < MIN_STEP_INLIERS {
-        tracing::debug!(
-            frame = current.index,
-            previous = previous.index,
-            rows = rows.len(),
-            matches = matches.len(),
-            "gap odometry: too few matches"
-        );
-        return Ok(None);
+        return Ok(accepted(
+            None,
+            (current, previous),
+            matches.len(),
+            "descriptors",
+        ));
     }
     // (point in the previous camera, this frame's keypoint index)
     let pairs: Vec<(Vector3<f64>, usize)> = matches
@@ -153,6 +163,7 @@ pub(crate) fn measure_step(
     if start.inliers() < MIN_STEP_INLIERS {
         return Ok(None);
     }
+    let limit = rig.stereo_depth_limit();
     let refined: Vec<PoseCorrespondence> = start
         .inlier_matches
         .iter()
