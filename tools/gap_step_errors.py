@@ -1,0 +1,157 @@
+#!/usr/bin/env python3
+"""The odometry steps of `spslam run` reports against a synthetic scene's truth.
+
+A lost stereo or RGB-D frame's step from the frame before it is measured by
+odometry (`src/tracking/gap_odometry.rs`; `gap_step_inliers` in a frame's
+record) and a frame joined by steps to a posed frame gets its pose along the
+chain (method `Odometry`). For every frame with a measured step whose frame
+or predecessor was posed that way, this prints the error of the trajectory's
+step against the ground truth, grouped by the step's inliers, so that a
+bound on the inliers can be judged by what it lets through:
+
+    python3 tools/gap_step_errors.py --runs out/suite/runs --scenes out/suite/scenes \
+        --buckets 21,30
+
+Runs are `spslam evaluate` runs (`RUNS/NAME/report.json`, and `RUNS/NAME.case.json`,
+whose definition names the scene as `@SCENE`); the truth is the scene's
+`poses/00.txt` (KITTI format). The trajectory is the run's
+`trajectory_kitti.txt` (one row per frame) or `trajectory_tum.txt` (rows by
+timestamp). A step between two frames posed by different chains (one
+forwards, one backwards) holds the mismatch of the two chains, not one
+measured step; such steps are in the counts and show as the largest errors.
+"""
+
+import argparse
+import json
+import math
+import os
+import re
+import statistics
+import sys
+
+
+def kitti_rows(path):
+    """3×4 pose rows of a KITTI trajectory file."""
+    rows = []
+    with open(path, encoding="utf-8") as f:
+        for line in f:
+            v = [float(x) for x in line.split()]
+            if len(v) == 12:
+                rows.append([v[0:4], v[4:8], v[8:12]])
+    return rows
+
+
+def quat_pose(x, y, z, qx, qy, qz, qw):
+    """A 3×4 pose from a TUM row's translation and unit quaternion."""
+    r = [
+        [1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw), 2 * (qx * qz + qy * qw)],
+        [2 * (qx * qy + qz * qw), 1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw)],
+        [2 * (qx * qz - qy * qw), 2 * (qy * qz + qx * qw), 1 - 2 * (qx * qx + qy * qy)],
+    ]
+    return [r[0] + [x], r[1] + [y], r[2] + [z]]
+
+
+def inverse(t):
+    rt = [[t[j][i] for j in range(3)] for i in range(3)]
+    ti = [-sum(rt[i][j] * t[j][3] for j in range(3)) for i in range(3)]
+    return [rt[i] + [ti[i]] for i in range(3)]
+
+
+def compose(a, b):
+    return [
+        [sum(a[i][k] * b[k][j] for k in range(3)) + (a[i][3] if j == 3 else 0.0) for j in range(4)]
+        for i in range(3)
+    ]
+
+
+def size(t):
+    """Translation (m) and rotation angle (degrees) of a pose."""
+    metres = math.sqrt(sum(t[i][3] ** 2 for i in range(3)))
+    c = max(-1.0, min(1.0, (t[0][0] + t[1][1] + t[2][2] - 1.0) / 2.0))
+    return metres, math.degrees(math.acos(c))
+
+
+def estimated_poses(run, frames):
+    """Frame index -> estimated pose."""
+    kitti = os.path.join(run, "trajectory_kitti.txt")
+    if os.path.isfile(kitti):
+        rows = kitti_rows(kitti)
+        if len(rows) != len(frames):
+            sys.exit(f"{kitti}: {len(rows)} rows for {len(frames)} frames")
+        return dict(enumerate(rows))
+    by_time = {round(f["timestamp"], 3): f["index"] for f in frames}
+    poses = {}
+    with open(os.path.join(run, "trajectory_tum.txt"), encoding="utf-8") as f:
+        for line in f:
+            if line.startswith("#") or not line.strip():
+                continue
+            t, *rest = (float(x) for x in line.split())
+            index = by_time.get(round(t, 3))
+            if index is not None:
+                poses[index] = quat_pose(*rest)
+    return poses
+
+
+def step_errors(run, truth):
+    """(inliers, metres, degrees, frame) for each chained step of one run."""
+    with open(os.path.join(run, "report.json"), encoding="utf-8") as f:
+        frames = json.load(f)["frames"]
+    poses = estimated_poses(run, frames)
+    out = []
+    for f in frames:
+        j = f["index"]
+        inliers = f.get("gap_step_inliers")
+        if inliers is None or j == 0 or j - 1 not in poses or j not in poses:
+            continue
+        if "Odometry" not in (frames[j - 1]["method"], f["method"]):
+            continue
+        estimated = compose(inverse(poses[j - 1]), poses[j])
+        true = compose(inverse(truth[j - 1]), truth[j])
+        metres, degrees = size(compose(inverse(true), estimated))
+        out.append((inliers, metres, degrees, j))
+    return out
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--runs", required=True, action="append", help="an evaluate runs/ folder")
+    parser.add_argument("--scenes", required=True, help="the scenes' folder")
+    parser.add_argument("--buckets", default="21,30", help="inlier bucket edges")
+    args = parser.parse_args()
+    edges = [int(x) for x in args.buckets.split(",")]
+    buckets = {}
+    for folder in args.runs:
+        for name in sorted(os.listdir(folder)):
+            run = os.path.join(folder, name)
+            case = run + ".case.json"
+            if not os.path.isfile(os.path.join(run, "report.json")) or not os.path.isfile(case):
+                continue
+            with open(case, encoding="utf-8") as f:
+                scene = re.search(r"@([A-Za-z0-9_]+)", json.load(f)["definition"])
+            truth_path = scene and os.path.join(args.scenes, scene.group(1), "poses", "00.txt")
+            if not truth_path or not os.path.isfile(truth_path):
+                continue
+            for inliers, metres, degrees, j in step_errors(run, kitti_rows(truth_path)):
+                low = max((e for e in edges if e <= inliers), default=None)
+                if low is not None:
+                    buckets.setdefault(low, []).append((metres, degrees, f"{name}:{j}"))
+    print("| step inliers | steps | median error | 90th percentile | largest (run:frame) |")
+    print("|---|---|---|---|---|")
+    for low in sorted(buckets):
+        i = edges.index(low)
+        high = edges[i + 1] - 1 if i + 1 < len(edges) else None
+        label = f"{low}–{high}" if high else f"{low} or more"
+        steps = buckets[low]
+        metres = sorted(s[0] for s in steps)
+        degrees = sorted(s[1] for s in steps)
+        p90 = lambda v: v[min(len(v) - 1, int(0.9 * len(v)))]
+        worst = max(steps)
+        print(
+            f"| {label} | {len(steps)} | {statistics.median(metres):.3f} m, "
+            f"{statistics.median(degrees):.2f}° | {p90(metres):.3f} m, {p90(degrees):.2f}° | "
+            f"{worst[0]:.3f} m, {worst[1]:.2f}° ({worst[2]}) |"
+        )
+
+
+if __name__ == "__main__":
+    main()
