@@ -312,3 +312,49 @@ fn refine_step(
         inliers: result.inlier_count,
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+
+    use super::{measure_step, OdometryStep, MIN_STEP_INLIERS};
+    use crate::optim::{LieGroup, Se3};
+    use crate::test_world::{pose_at, PointWorld};
+
+    /// The step between two stereo frames 1 m and 3° apart that see the
+    /// same `n` points (every one inside both images), predicted 0.2 m and
+    /// 1° off, with the true step.
+    fn step_over(n: usize) -> (Option<OdometryStep>, Se3) {
+        let world = PointWorld::new(11, n, (3.0, 2.0, 8.0, 12.0));
+        let first = pose_at(Vector3::zeros(), 0.0);
+        let second = pose_at(Vector3::new(0.1, 0.0, 1.0), 3f64.to_radians());
+        let (previous, seen_first) = world.frame(0, &first, true);
+        let (current, seen_second) = world.frame(1, &second, true);
+        assert_eq!(
+            (seen_first.point_of.len(), seen_second.point_of.len()),
+            (n, n)
+        );
+        let truth = second.compose(&first.inverse());
+        let off = pose_at(Vector3::new(0.2, 0.0, 0.0), 1f64.to_radians());
+        let predicted = off.compose(&truth);
+        let step = measure_step(&previous, &current, &world.rig, Some(&predicted))
+            .unwrap_or_else(|e| panic!("{e}"));
+        (step, truth)
+    }
+
+    #[test]
+    fn a_step_needs_more_than_twenty_inliers_as_orb_slam3_odometry() {
+        assert_eq!(MIN_STEP_INLIERS, 21);
+        let (step, truth) = step_over(MIN_STEP_INLIERS);
+        let step = step.expect("21 points seen by both frames give a step");
+        assert_eq!(step.inliers, MIN_STEP_INLIERS);
+        let error = truth.inverse().compose(&step.pose_cp);
+        let (metres, radians) = (error.translation.norm(), error.rotation.angle());
+        assert!(
+            metres < 1e-3 && radians < 1e-4,
+            "{metres} m, {radians} rad off"
+        );
+        let (step, _) = step_over(MIN_STEP_INLIERS - 1);
+        assert_eq!(step, None, "20 points give no step");
+    }
+}
