@@ -100,6 +100,19 @@ def commit():
         return "unknown"
 
 
+def ground_truth(dataset):
+    """The ground-truth file of a run's dataset argument."""
+    kind, _, path = dataset.partition(":")
+    if kind == "synth":
+        return os.path.join(path, "poses", "00.txt")
+    if kind == "kitti":
+        seq = os.path.basename(os.path.normpath(path))
+        return os.path.join(path, "..", "..", "poses", f"{seq}.txt")
+    if kind == "tum":
+        return os.path.join(path, "groundtruth.txt")
+    sys.exit(f"error: no ground truth known for dataset {dataset!r}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--a", help="the first set's folder")

@@ -27,7 +27,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ab_runs_table import commit, machine  # noqa: E402
+from ab_runs_table import commit, ground_truth, machine  # noqa: E402
 
 
 def quat_to_matrix(qx, qy, qz, qw):
@@ -106,19 +106,6 @@ def held_rows(frames, rows):
             held_prev = offsets[m] @ carried
         out.append((t, held_prev.copy()))
     return out
-
-
-def ground_truth(dataset):
-    """The ground-truth file of a run's dataset argument."""
-    kind, _, path = dataset.partition(":")
-    if kind == "synth":
-        return os.path.join(path, "poses", "00.txt")
-    if kind == "kitti":
-        seq = os.path.basename(os.path.normpath(path))
-        return os.path.join(path, "..", "..", "poses", f"{seq}.txt")
-    if kind == "tum":
-        return os.path.join(path, "groundtruth.txt")
-    sys.exit(f"error: no ground truth known for dataset {dataset!r}")
 
 
 def ate(spslam, gt, est, mono):

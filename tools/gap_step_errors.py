@@ -9,14 +9,14 @@ or predecessor was posed that way, this prints the error of the trajectory's
 step against the ground truth, grouped by the step's inliers, so that a
 bound on the inliers can be judged by what it lets through:
 
-    python3 tools/gap_step_errors.py --runs out/suite/runs --scenes out/suite/scenes \
-        --buckets 21,30
+    python3 tools/gap_step_errors.py --runs out/suite/runs --buckets 21,30
 
-Runs are `spslam evaluate` runs (`RUNS/NAME/report.json`, and `RUNS/NAME.case.json`,
-whose definition names the scene as `@SCENE`); the truth is the scene's
-`poses/00.txt` (KITTI format). The trajectory is the run's
-`trajectory_kitti.txt` (one row per frame) or `trajectory_tum.txt` (rows by
-timestamp). A step between two frames posed by different chains (one
+`--runs` is a folder of run folders (`spslam evaluate`'s `runs/`, or
+folders written by `spslam run --out`), each with its `report.json`; the
+truth is the file of the run's dataset (`ab_runs_table.ground_truth`:
+a synthetic scene's `poses/00.txt`, a TUM sequence's `groundtruth.txt`).
+Trajectory and truth are read the same way: a KITTI file row by row (one
+row per frame), a TUM file by timestamp. A step between two frames posed by different chains (one
 forwards, one backwards) holds the mismatch of the two chains, not one
 measured step; such steps are in the counts and show as the largest errors.
 """
@@ -25,23 +25,11 @@ import argparse
 import json
 import math
 import os
-import re
 import statistics
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from ab_runs_table import commit, machine  # noqa: E402
-
-
-def kitti_rows(path):
-    """3×4 pose rows of a KITTI trajectory file."""
-    rows = []
-    with open(path, encoding="utf-8") as f:
-        for line in f:
-            v = [float(x) for x in line.split()]
-            if len(v) == 12:
-                rows.append([v[0:4], v[4:8], v[8:12]])
-    return rows
+from ab_runs_table import commit, ground_truth, machine  # noqa: E402
 
 
 def quat_pose(x, y, z, qx, qy, qz, qw):
@@ -74,37 +62,39 @@ def size(t):
     return metres, math.degrees(math.acos(c))
 
 
-def estimated_poses(run, frames):
-    """Frame index -> estimated pose."""
-    kitti = os.path.join(run, "trajectory_kitti.txt")
-    if os.path.isfile(kitti):
-        rows = kitti_rows(kitti)
+def poses_by_frame(path, frames):
+    """Frame index -> pose (3×4) of a trajectory file: KITTI rows (12 numbers,
+    one row per frame) or TUM rows (8 numbers, matched to the frames by
+    timestamp)."""
+    with open(path, encoding="utf-8") as f:
+        rows = [[float(x) for x in line.split()] for line in f
+                if line.strip() and not line.startswith("#")]
+    if rows and len(rows[0]) == 12:
         if len(rows) != len(frames):
-            sys.exit(f"{kitti}: {len(rows)} rows for {len(frames)} frames")
-        return dict(enumerate(rows))
+            sys.exit(f"{path}: {len(rows)} rows for {len(frames)} frames")
+        return {i: [v[0:4], v[4:8], v[8:12]] for i, v in enumerate(rows)}
     by_time = {round(f["timestamp"], 3): f["index"] for f in frames}
-    poses = {}
-    with open(os.path.join(run, "trajectory_tum.txt"), encoding="utf-8") as f:
-        for line in f:
-            if line.startswith("#") or not line.strip():
-                continue
-            t, *rest = (float(x) for x in line.split())
-            index = by_time.get(round(t, 3))
-            if index is not None:
-                poses[index] = quat_pose(*rest)
-    return poses
+    return {by_time[round(v[0], 3)]: quat_pose(*v[1:8])
+            for v in rows if round(v[0], 3) in by_time}
 
 
-def step_errors(run, truth):
+def step_errors(run):
     """(inliers, metres, degrees, frame) for each chained step of one run."""
     with open(os.path.join(run, "report.json"), encoding="utf-8") as f:
-        frames = json.load(f)["frames"]
-    poses = estimated_poses(run, frames)
+        report = json.load(f)
+    frames = report["frames"]
+    estimate = next(
+        os.path.join(run, n)
+        for n in ("trajectory_kitti.txt", "trajectory_tum.txt")
+        if os.path.exists(os.path.join(run, n))
+    )
+    poses = poses_by_frame(estimate, frames)
+    truth = poses_by_frame(ground_truth(report["dataset"]), frames)
     out = []
     for f in frames:
         j = f["index"]
         inliers = f.get("gap_step_inliers")
-        if inliers is None or j == 0 or j - 1 not in poses or j not in poses:
+        if inliers is None or j == 0 or not {j - 1, j} <= poses.keys() & truth.keys():
             continue
         if "Odometry" not in (frames[j - 1]["method"], f["method"]):
             continue
@@ -118,7 +108,6 @@ def step_errors(run, truth):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", required=True, action="append", help="an evaluate runs/ folder")
-    parser.add_argument("--scenes", required=True, help="the scenes' folder")
     parser.add_argument("--buckets", default="21,30", help="inlier bucket edges")
     args = parser.parse_args()
     edges = [int(x) for x in args.buckets.split(",")]
@@ -126,15 +115,9 @@ def main():
     for folder in args.runs:
         for name in sorted(os.listdir(folder)):
             run = os.path.join(folder, name)
-            case = run + ".case.json"
-            if not os.path.isfile(os.path.join(run, "report.json")) or not os.path.isfile(case):
+            if not os.path.isfile(os.path.join(run, "report.json")):
                 continue
-            with open(case, encoding="utf-8") as f:
-                scene = re.search(r"@([A-Za-z0-9_]+)", json.load(f)["definition"])
-            truth_path = scene and os.path.join(args.scenes, scene.group(1), "poses", "00.txt")
-            if not truth_path or not os.path.isfile(truth_path):
-                continue
-            for inliers, metres, degrees, j in step_errors(run, kitti_rows(truth_path)):
+            for inliers, metres, degrees, j in step_errors(run):
                 low = max((e for e in edges if e <= inliers), default=None)
                 if low is not None:
                     buckets.setdefault(low, []).append((metres, degrees, f"{name}:{j}"))
