@@ -1,7 +1,8 @@
 //! The blurred lap's first corner in stereo: `spslam synth --scene loop
 //! --blur 6` (half the frame interval's motion averaged into each image),
 //! as in the suite's `loop_blur_stereo_sp_anms`, its first 32 frames,
-//! `spslam run --inline-mapping` with SuperPoint + ANMS (the defaults).
+//! `spslam run --inline-mapping` with SuperPoint + ANMS (the defaults),
+//! without the second look (`--second-look-levels 0`), then with it.
 //!
 //! The corner turns 10–12° a frame from frame 21. Frames 21–24 cannot be
 //! tracked against the map (their blurred keypoints miss the sharp map's
@@ -16,7 +17,7 @@
 
 mod common;
 
-use common::cli::{frames_lost_and_maps, synth_then_run, INLINE_SUPERPOINT_ANMS};
+use common::cli::{frames_lost_and_maps, run_into, synth_then_run, INLINE_SUPERPOINT_ANMS};
 use common::temp_dir::TempDir;
 use spslam::eval::read_kitti;
 
@@ -37,11 +38,18 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
     let dir = TempDir::new("blur-corner", "stereo");
     let frames = FRAMES.to_string();
     let dataset = format!("synth:{}", dir.path().display());
+    // Odometry alone: without the second look, which could track one of
+    // the corner's frames on another CPU's int8 network.
+    let one_look_args: Vec<&str> = INLINE_SUPERPOINT_ANMS
+        .iter()
+        .copied()
+        .chain(["--second-look-levels", "0"])
+        .collect();
     let report = synth_then_run(
         dir.path(),
         &["--scene", "loop", "--blur", "6", "--frames", &frames],
         &dataset,
-        &INLINE_SUPERPOINT_ANMS,
+        &one_look_args,
     );
     let (records, lost, maps) = frames_lost_and_maps(&report);
     assert_eq!(records.len(), FRAMES);
@@ -85,4 +93,55 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
             "frame {k}: step {metres:.3} m, {degrees:.2}° off the truth"
         );
     }
+    // With the second look (the default, four levels,
+    // `src/system/second_look.rs`) the corner's frames are looked at
+    // again; here every look failed (measured: frames 21-24 and more, none
+    // tracked). A second look that fails leaves the run as it was: up to
+    // the first frame a second look tracks (none here), every record and
+    // every pose is the one-look run's.
+    assert_eq!(report["summary"]["second_looks"].as_u64(), Some(0));
+    let looked_dir = dir.path().join("run_second_look");
+    let looked = run_into(&looked_dir, &dataset, &INLINE_SUPERPOINT_ANMS);
+    let looked_records = looked["frames"].as_array().expect("records");
+    let same_until = looked_records
+        .iter()
+        .position(|r| r["second_look"] == "tracked")
+        .unwrap_or(FRAMES);
+    let failed_looks = looked_records[..same_until]
+        .iter()
+        .filter(|r| r["second_look"] == "still_lost")
+        .count();
+    assert!(
+        failed_looks >= 4,
+        "failed second looks before frame {same_until}: {failed_looks}"
+    );
+    let outcome = |r: &serde_json::Value| {
+        (
+            r["index"].clone(),
+            r["state"].clone(),
+            r["method"].clone(),
+            r["inliers"].clone(),
+            r["keyframe"].clone(),
+            r["gap_step_inliers"].clone(),
+        )
+    };
+    for (a, b) in records[..same_until].iter().zip(looked_records) {
+        assert_eq!(
+            outcome(a),
+            outcome(b),
+            "a failed second look changed a record"
+        );
+    }
+    let rows = |d: &std::path::Path| -> Vec<String> {
+        std::fs::read_to_string(d.join("trajectory_kitti.txt"))
+            .expect("trajectory")
+            .lines()
+            .take(same_until)
+            .map(String::from)
+            .collect()
+    };
+    assert!(
+        rows(&dir.path().join("run")) == rows(&looked_dir),
+        "a failed second look changed the trajectory before frame {same_until}"
+    );
 }

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use spslam::features::{AnmsMethod, Device, ExposureConfig, ExposureMode, Precision};
 use spslam::settings::{
-    SettingsError, SlamSettings, DEFAULT_MONOCULAR_SUPERPOINT_LEVELS, DEFAULT_SUPERPOINT_LEVELS,
-    DEFAULT_TH_DEPTH,
+    SettingsError, SlamSettings, DEFAULT_MONOCULAR_SUPERPOINT_LEVELS, DEFAULT_SECOND_LOOK_LEVELS,
+    DEFAULT_SUPERPOINT_LEVELS, DEFAULT_TH_DEPTH,
 };
 
 fn write(name: &str, text: &str) -> PathBuf {
@@ -101,6 +101,32 @@ fn superpoint_levels_default_by_sensor_unless_the_settings_say() {
     let e = error_for("levels_zero.yaml", &text);
     assert!(
         matches!(&e, SettingsError::Invalid { key, .. } if key == "SuperPoint.nLevels"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_second_look_is_deeper_than_the_run_or_none() {
+    // Absent: four levels, for a run on fewer (stereo and RGB-D on one);
+    // none for a run already on four or more (monocular, ORB on eight).
+    let s = SlamSettings::from_file(write("second_default.yaml", OLD_LAYOUT)).expect("settings");
+    assert_eq!(s.extractor.second_look_levels, None);
+    assert_eq!(DEFAULT_SECOND_LOOK_LEVELS, 4);
+    assert_eq!(s.extractor.second_look_levels_for(1), Some(4));
+    assert_eq!(s.extractor.second_look_levels_for(3), Some(4));
+    assert_eq!(s.extractor.second_look_levels_for(4), None);
+    assert_eq!(s.extractor.second_look_levels_for(8), None);
+    // Given: 0 turns it off; more levels than the run's are taken.
+    let text = format!("{OLD_LAYOUT}SuperPoint.secondLookLevels: 0\n");
+    let s = SlamSettings::from_file(write("second_off.yaml", &text)).expect("settings");
+    assert_eq!(s.extractor.second_look_levels_for(1), None);
+    let text = format!("{OLD_LAYOUT}SuperPoint.secondLookLevels: 8\n");
+    let s = SlamSettings::from_file(write("second_eight.yaml", &text)).expect("settings");
+    assert_eq!(s.extractor.second_look_levels_for(4), Some(8));
+    let text = format!("{OLD_LAYOUT}SuperPoint.secondLookLevels: 33\n");
+    let e = error_for("second_too_many.yaml", &text);
+    assert!(
+        matches!(&e, SettingsError::Invalid { key, .. } if key == "SuperPoint.secondLookLevels"),
         "{e}"
     );
 }

@@ -14,6 +14,10 @@
 //!   [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] without; see
 //!   [`ExtractorSettings::superpoint_levels_for`]; `ORBextractor.nLevels`
 //!   stays ORB's, and the C++ shim's);
+//! - `SuperPoint.secondLookLevels`: the pyramid levels a frame tracking
+//!   lost is extracted on once more before it counts as lost (default
+//!   [`DEFAULT_SECOND_LOOK_LEVELS`], 0: never; see
+//!   [`ExtractorSettings::second_look_levels_for`]);
 //! - `SuperPoint.precision`: `fp32` or `int8` (default: see [`Precision`]);
 //!   it picks the default model file;
 //! - `SuperPoint.device`: `auto` (default), `cpu` or `cuda` (ONNX Runtime's
@@ -97,6 +101,18 @@ pub const DEFAULT_SUPERPOINT_LEVELS: usize = 1;
 /// per frame.
 pub const DEFAULT_MONOCULAR_SUPERPOINT_LEVELS: usize = 4;
 
+/// Pyramid levels of the second look at a frame tracking lost, when the
+/// settings do not say (`SuperPoint.secondLookLevels`): a frame that could
+/// not be tracked on the run's pyramid is extracted again on this many
+/// levels and tracked once more ([`ExtractorSettings::second_look_levels_for`]).
+/// Four, the monocular default ([`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`]):
+/// on the blurred laps, four levels on every frame tracked 232 of 232
+/// stereo frames on all three renderings where one level lost up to four
+/// (EVALUATION.md, "Odometry steps with more than 20 inliers", the data
+/// point after CI); the second look pays for them only on the frames one
+/// level loses.
+pub const DEFAULT_SECOND_LOOK_LEVELS: usize = 4;
+
 /// Feature-extractor parameters, with ORB-SLAM3's names and defaults.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ExtractorSettings {
@@ -111,6 +127,10 @@ pub struct ExtractorSettings {
     /// `None` when the settings do not say, whatever `ORBextractor.nLevels`
     /// says: [`Self::superpoint_levels_for`] then picks the sensor's default.
     pub superpoint_levels: Option<usize>,
+    /// The second look's pyramid levels (`SuperPoint.secondLookLevels`;
+    /// 0: no second look), `None` when the settings do not say
+    /// ([`DEFAULT_SECOND_LOOK_LEVELS`]).
+    pub second_look_levels: Option<usize>,
     /// FAST threshold (`ORBextractor.iniThFAST`); SuperPoint maps it to iniThFAST/4000.
     pub ini_th_fast: i32,
     /// Fallback FAST threshold (`ORBextractor.minThFAST`).
@@ -140,6 +160,7 @@ impl Default for ExtractorSettings {
             scale_factor: 1.2,
             n_levels: 8,
             superpoint_levels: None,
+            second_look_levels: None,
             ini_th_fast: 20,
             min_th_fast: 7,
             anms: AnmsMethod::default(),
@@ -164,6 +185,20 @@ impl ExtractorSettings {
         } else {
             DEFAULT_SUPERPOINT_LEVELS
         })
+    }
+
+    /// The pyramid levels of the second look at a frame tracking lost on a
+    /// run of `levels` levels: `SuperPoint.secondLookLevels` when the
+    /// settings say (0: never), else [`DEFAULT_SECOND_LOOK_LEVELS`]; `None`
+    /// when that is not more than `levels` (an ORB run on eight levels,
+    /// a monocular run on four), since the same pyramid would see the
+    /// same keypoints. The one place that decides whether a run takes a
+    /// second look.
+    pub fn second_look_levels_for(&self, levels: usize) -> Option<usize> {
+        let wanted = self
+            .second_look_levels
+            .unwrap_or(DEFAULT_SECOND_LOOK_LEVELS);
+        (wanted > levels).then_some(wanted)
     }
 
     /// The SuperPoint extractor these settings describe (ORB-SLAM3's
@@ -393,6 +428,14 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
     if let Some(levels) = superpoint_levels.filter(|l| !(1..=32).contains(l)) {
         return Err(reader.invalid("SuperPoint.nLevels", levels, "must be 1..=32"));
     }
+    let second_look_levels = reader.optional_i64(&["SuperPoint.secondLookLevels"])?;
+    if let Some(levels) = second_look_levels.filter(|l| !(0..=32).contains(l)) {
+        return Err(reader.invalid(
+            "SuperPoint.secondLookLevels",
+            levels,
+            "must be 0 (no second look) ..= 32",
+        ));
+    }
     let threshold = |key: &str, default: i32| -> Result<i32> {
         match reader.optional_i64(&[key])? {
             None => Ok(default),
@@ -452,6 +495,7 @@ fn read_extractor(reader: &SettingsReader) -> Result<ExtractorSettings> {
         scale_factor,
         n_levels: n_levels as usize,
         superpoint_levels: superpoint_levels.map(|l| l as usize),
+        second_look_levels: second_look_levels.map(|l| l as usize),
         ini_th_fast,
         min_th_fast,
         anms,

@@ -15,7 +15,7 @@ use crate::settings::SlamSettings;
 use crate::storage::crc32;
 use crate::tracking::Frontend;
 
-use super::{MapProvenance, SlamSystem};
+use super::{MapProvenance, SecondLook, SlamSystem};
 
 /// Which features the system tracks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -67,6 +67,9 @@ pub struct AssembledSystem {
     pub inference: String,
     /// The pyramid levels used.
     pub levels: usize,
+    /// The second look's pyramid levels, when lost frames get one
+    /// ([`SlamSettings`]' `second_look_levels_for`).
+    pub second_look_levels: Option<usize>,
     /// The extractor settings, model and codebook a saved map records.
     pub provenance: MapProvenance,
 }
@@ -151,6 +154,20 @@ pub fn assemble_system(
         None => Frontend::single(left, &rig)?,
     };
     let mut system = SlamSystem::new(rig, frontend);
+    let second_look_levels = settings.extractor.second_look_levels_for(levels);
+    if let Some(deeper) = second_look_levels {
+        let (kind, settings) = (options.extractor, settings.clone());
+        system.set_second_look(Some(SecondLook::new(
+            deeper,
+            Box::new(move || {
+                let (left, right) = extractors(kind, &settings, deeper, sensor)?;
+                match right {
+                    Some(right) => Ok(Frontend::new(left, right, &rig)),
+                    None => Frontend::single(left, &rig),
+                }
+            }),
+        )));
+    }
     let superpoint = options.extractor == ExtractorKind::SuperPoint;
     let model_hash = if superpoint {
         file_fingerprint(
@@ -185,6 +202,7 @@ pub fn assemble_system(
         system,
         inference,
         levels,
+        second_look_levels,
         provenance: MapProvenance {
             extractor_settings: format!("{:?}", settings.extractor),
             model_hash,

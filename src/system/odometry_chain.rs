@@ -118,6 +118,7 @@ mod tests {
                 timings: Default::default(),
                 mapping: None,
                 loop_check_running: false,
+                second_look: None,
             })
             .collect()
     }

@@ -9,6 +9,7 @@ use crate::optim::{LieGroup, Se3};
 use crate::tracking::{TrackingMethod, TrackingState};
 
 use super::atlas::MapIndex;
+use super::second_look::SecondLookOutcome;
 
 /// Milliseconds per stage for one frame.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
@@ -99,6 +100,10 @@ pub struct FrameRecord {
     /// ended: the frames whose tracking time shows what loop detection
     /// costs tracking (`tools/tracking_latency.py`).
     pub loop_check_running: bool,
+    /// Whether the frame, lost on its first try, was extracted again on
+    /// the second look's pyramid, and what that gave (`None`: no second
+    /// look). Its timings include the second look's extraction.
+    pub second_look: Option<SecondLookOutcome>,
 }
 
 /// One atlas map in a run's summary.
@@ -157,6 +162,11 @@ pub struct SlamSummary {
     /// tracked frame odometry measured, step by step (tracking itself
     /// stayed lost).
     pub by_odometry: usize,
+    /// Frames given a second look (extracted again on a deeper pyramid
+    /// after their first try was lost).
+    pub second_looks: usize,
+    /// Those tracked on the second look's features.
+    pub tracked_on_second_look: usize,
     /// Keyframes inserted.
     pub keyframes_inserted: usize,
     /// Live keyframes in all maps.

@@ -16,8 +16,8 @@ use crate::map::{KeyFrameId, SharedMap};
 use crate::mapping::{LocalMapper, MappingSummary};
 use crate::optim::{LieGroup, Se3};
 use crate::tracking::{
-    Extractors, FrameBuilder, Frontend, LateLocalisation, SensorFeatures, SensorImages, Tracker,
-    TrackingMethod, TrackingState,
+    Extractors, FrameBuilder, Frontend, LateLocalisation, SensorFeatures, SensorImages,
+    TrackOutcome, Tracker, TrackingMethod, TrackingState,
 };
 
 use super::atlas::{Atlas, MapIndex};
@@ -29,6 +29,7 @@ use super::loop_closing_stage::{LoopClosingStage, LoopLog};
 use super::loop_closing_thread::LoopClosingThread;
 use super::odometry_chain::chain_odometry;
 use super::records::{FrameRecord, FrameTimings, RelativePose};
+use super::second_look::{SecondLook, SecondLookFrame, SecondLookOutcome};
 
 /// Where loop detection runs: on the tracking thread between frames
 /// (with inline mapping: deterministic), or on its own thread (with a
@@ -92,6 +93,8 @@ pub struct SlamSystem {
     pub(super) global_ba: Option<GlobalBaThread>,
     pub(super) global_ba_runs: Vec<GlobalBaSummary>,
     pub(super) global_ba_hook: Option<GlobalBaHook>,
+    /// A deeper pyramid's look at a frame tracking lost.
+    second_look: Option<SecondLook>,
 }
 
 impl SlamSystem {
@@ -114,7 +117,21 @@ impl SlamSystem {
             global_ba: None,
             global_ba_runs: Vec::new(),
             global_ba_hook: None,
+            second_look: None,
         }
+    }
+
+    /// Gives a frame tracking lost a second look: its images extracted
+    /// again by `second_look`'s extractors (a deeper pyramid) and tracked
+    /// once more from the tracking state before the first try; `None`:
+    /// lost frames stay lost. See [`SecondLook`].
+    pub fn set_second_look(&mut self, second_look: Option<SecondLook>) {
+        self.second_look = second_look;
+    }
+
+    /// The second look's pyramid levels, when lost frames get one.
+    pub fn second_look_levels(&self) -> Option<usize> {
+        self.second_look.as_ref().map(SecondLook::levels)
     }
 
     /// Restarts the local-mapping thread stopped by [`Self::pause_mapping`]
@@ -500,6 +517,7 @@ impl SlamSystem {
             timings: FrameTimings::default(),
             mapping: None,
             loop_check_running: false,
+            second_look: None,
         });
         let last = self.records.len() - 1;
         &self.records[last]
@@ -530,7 +548,7 @@ impl SlamSystem {
         // starts the new one itself if that fails.
         let second_try =
             (!new_map_due && self.tracker.patience_spent(index)).then(|| frame.clone());
-        let stereo_points = frame.stereo_count();
+        let mut stereo_points = frame.stereo_count();
         let thumbnail = frame.thumbnail.clone();
         let queue = match &self.mapping {
             Mapping::Thread { thread, .. } => thread.pending(),
@@ -544,6 +562,12 @@ impl SlamSystem {
         let (mut map_index, mut map) = (active.index, active.map.clone());
         let loop_check_at_start = self.loop_check_running();
         let start = Instant::now();
+        // The state a second look starts from (not on a frame that may
+        // start a new map, nor before a map exists: those tries write).
+        let before_first_try = (self.second_look.is_some()
+            && second_try.is_none()
+            && self.tracker.state() != TrackingState::NotInitialised)
+            .then(|| self.tracker.clone());
         let mut outcome = self.tracker.track(frame, &map, queue)?;
         if let Some(frame) = second_try {
             if self.tracker.should_start_new_map(index) {
@@ -553,7 +577,23 @@ impl SlamSystem {
                 outcome = self.tracker.track(frame, &map, queue)?;
             }
         }
-        let tracking_ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut second_look = None;
+        let mut second_look_ms = (0.0, 0.0);
+        if let (None, Some(before)) = (&outcome.relative_pose, before_first_try) {
+            if let Some(look) = self.look_again(index, timestamp, images, before, &map, queue)? {
+                if look.outcome.relative_pose.is_some() {
+                    // The second try's state stays; its outcome replaces the first's.
+                    outcome = look.outcome;
+                    stereo_points = look.stereo_points;
+                    second_look = Some(SecondLookOutcome::Tracked);
+                } else {
+                    self.tracker = look.first_try;
+                    second_look = Some(SecondLookOutcome::StillLost);
+                }
+                second_look_ms = (look.extraction_ms, look.stereo_ms);
+            }
+        }
+        let tracking_ms = start.elapsed().as_secs_f64() * 1e3 - second_look_ms.0 - second_look_ms.1;
         if outcome.interrupt_mapping {
             self.interrupt_mapping(index);
         }
@@ -621,14 +661,15 @@ impl SlamSystem {
             gap_step: outcome.gap_step.map(|s| s.pose_cp),
             gap_step_inliers: outcome.gap_step.map(|s| s.inliers),
             timings: FrameTimings {
-                extraction_ms,
-                stereo_ms,
+                extraction_ms: extraction_ms + second_look_ms.0,
+                stereo_ms: stereo_ms + second_look_ms.1,
                 tracking_ms,
                 lock_wait_ms: self.tracker.last_lock_wait_ms(),
                 mapping_ms,
             },
             mapping,
             loop_check_running,
+            second_look,
         });
         let last = self.records.len() - 1;
         chain_odometry(&mut self.records, last);
@@ -636,6 +677,49 @@ impl SlamSystem {
             self.close_loops()?;
         }
         Ok(&self.records[last])
+    }
+
+    /// The second look at frame `index`, lost on its first try: its
+    /// features on the second look's pyramid, tracked from `before` (the
+    /// tracker as it was before the first try), which becomes the tracker;
+    /// the first try's tracker is handed back. `None` when there is no
+    /// second look or its extraction failed (warned): nothing changed.
+    fn look_again(
+        &mut self,
+        index: usize,
+        timestamp: f64,
+        images: SensorImages<'_>,
+        before: Tracker,
+        map: &SharedMap,
+        queue: usize,
+    ) -> Result<Option<SecondTry>, SlamError> {
+        let Some(look) = self.second_look.as_mut() else {
+            return Ok(None);
+        };
+        let Some(SecondLookFrame {
+            frame,
+            extraction_ms,
+            stereo_ms,
+        }) = look.frame(index, timestamp, images, &self.rig)?
+        else {
+            return Ok(None);
+        };
+        let stereo_points = frame.stereo_count();
+        let first_try = std::mem::replace(&mut self.tracker, before);
+        let outcome = self.tracker.track(frame, map, queue)?;
+        tracing::debug!(
+            frame = index,
+            tracked = outcome.relative_pose.is_some(),
+            inliers = outcome.inliers,
+            "second look"
+        );
+        Ok(Some(SecondTry {
+            outcome,
+            first_try,
+            stereo_points,
+            extraction_ms,
+            stereo_ms,
+        }))
     }
 
     /// Whether the loop-closing thread is checking a keyframe now.
@@ -688,4 +772,17 @@ impl SlamSystem {
     pub fn state(&self) -> TrackingState {
         self.tracker.state()
     }
+}
+
+/// A lost frame tracked again on the second look's features.
+struct SecondTry {
+    /// The second try's outcome.
+    outcome: TrackOutcome,
+    /// The tracker after the first try (restored when that one is kept).
+    first_try: Tracker,
+    /// The second look's stereo keypoints.
+    stereo_points: usize,
+    /// Its extraction and stereo matching, ms.
+    extraction_ms: f64,
+    stereo_ms: f64,
 }

@@ -14,6 +14,7 @@ use super::atlas::MapIndex;
 use super::gap_motion::GapMotion;
 use super::odometry_chain::linked;
 use super::records::{FrameTimings, MapSummary, SlamSummary};
+use super::second_look::SecondLookOutcome;
 use super::SlamSystem;
 
 /// One trajectory row: `(timestamp, T_wc, (map, anchor frame) for a
@@ -259,6 +260,9 @@ impl SlamSystem {
             s.localised_after_loss += usize::from(r.method == TrackingMethod::AfterLoss);
             s.corroborated += usize::from(r.method == TrackingMethod::Corroborated);
             s.by_odometry += usize::from(r.method == TrackingMethod::Odometry);
+            s.second_looks += usize::from(r.second_look.is_some());
+            s.tracked_on_second_look +=
+                usize::from(r.second_look == Some(SecondLookOutcome::Tracked));
             s.keyframes_inserted += usize::from(r.keyframe);
             sum.extraction_ms += r.timings.extraction_ms;
             sum.stereo_ms += r.timings.stereo_ms;

@@ -76,7 +76,12 @@ impl TrackOutcome {
 }
 
 /// Tracks frames against a map.
-#[derive(Debug)]
+///
+/// A clone is a snapshot of the tracking state (the last frame, the
+/// motion, the current loss): tracking a frame that ends lost only reads
+/// the map, so restoring the snapshot undoes the try (the system's second
+/// look at a lost frame does).
+#[derive(Debug, Clone)]
 pub struct Tracker {
     rig: CameraRig,
     state: TrackingState,

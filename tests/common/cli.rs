@@ -44,12 +44,17 @@ pub fn synth_then_run(
         .output()
         .expect("run spslam synth");
     assert!(synth.status.success(), "{}", logs(&synth));
-    let out = dir.join("run");
+    run_into(&dir.join("run"), dataset, run_args)
+}
+
+/// Runs `spslam run --dataset DATASET RUN_ARGS --out OUT`, asserts that it
+/// succeeds, and returns its `report.json`.
+pub fn run_into(out: &std::path::Path, dataset: &str, run_args: &[&str]) -> serde_json::Value {
     let run = spslam()
         .args(["run", "--dataset", dataset])
         .args(run_args)
         .arg("--out")
-        .arg(&out)
+        .arg(out)
         .output()
         .expect("run spslam run");
     assert_eq!(run.status.code(), Some(0), "{}", logs(&run));

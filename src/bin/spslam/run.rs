@@ -114,6 +114,13 @@ pub struct RunArgs {
     /// 4 for monocular), ORBextractor.nLevels for ORB].
     #[arg(long)]
     levels: Option<usize>,
+    /// Pyramid levels of the second look at a frame tracking lost: its
+    /// images extracted again on this many levels and tracked once more
+    /// before it counts as lost; 0: no second look [default: the settings'
+    /// SuperPoint.secondLookLevels, else 4; none when not more than the
+    /// run's levels].
+    #[arg(long, value_name = "LEVELS")]
+    second_look_levels: Option<usize>,
     /// SuperPoint network precision: fp32 or int8 [default: the settings' SuperPoint.precision].
     #[arg(long)]
     precision: Option<Precision>,
@@ -289,6 +296,12 @@ pub fn run_slam(args: RunArgs) -> Result<ExitCode> {
     }
     if let Some(device) = args.device {
         settings.extractor.device = device;
+    }
+    if let Some(levels) = args.second_look_levels {
+        if levels > 32 {
+            bail!("--second-look-levels {levels}: give 0 (no second look) to 32 levels");
+        }
+        settings.extractor.second_look_levels = Some(levels);
     }
     if let Some(share) = args.max_phase_share {
         settings.extractor.max_phase_share = share;

@@ -1,0 +1,102 @@
+//! The second look at a lost frame (`src/system/second_look.rs`) on the
+//! blurred lap's first corner, third rendering: `spslam synth --scene loop
+//! --blur 6 --seed 2`, as in the suite's `loop_blur_s2_stereo_sp_anms`, its
+//! first 32 frames, `spslam run --inline-mapping` with SuperPoint + ANMS
+//! (the defaults: one pyramid level, a second look on four).
+//!
+//! The corner turns 10–12° a frame from frame 21. On one level frame 21's
+//! blurred keypoints miss the map's points and its first try is lost;
+//! extracted again on four levels it is tracked against the map. Measured
+//! (AMD EPYC, AVX-512 VNNI): frame 21 tracked on the second look with 37
+//! inliers, 0.038 m and 0.81° from the true step (the whole lap: 229 → 232
+//! of 232 frames tracked). The test asks it of one of the corner's frames
+//! 21–24, since another CPU's int8 network may lose a different one.
+
+mod common;
+
+use common::cli::{synth_then_run, INLINE_SUPERPOINT_ANMS};
+use common::temp_dir::TempDir;
+use spslam::eval::read_kitti;
+
+/// Frames run: past the first corner.
+const FRAMES: usize = 32;
+/// The corner's blurred frames, the first of which one level loses.
+const CORNER: std::ops::RangeInclusive<usize> = 21..=24;
+/// The largest error of a frame's pose tracked on the second look,
+/// relative to the frame before, against the truth: 0.038 m and 0.81°
+/// measured (frame 21); bounds at 2.6× and 1.9×, room for another CPU's
+/// int8 network (the odometry steps of the same corner on one level are
+/// 0.06-0.18 m off).
+const MAX_STEP_ERROR_M: f64 = 0.1;
+const MAX_STEP_ERROR_DEG: f64 = 1.5;
+
+#[test]
+fn a_blurred_frame_lost_on_one_level_is_tracked_on_the_second_look() {
+    if !common::model_available("a_blurred_frame_lost_on_one_level_is_tracked_on_the_second_look") {
+        return;
+    }
+    let dir = TempDir::new("second-look", "stereo");
+    let frames = FRAMES.to_string();
+    let dataset = format!("synth:{}", dir.path().display());
+    let report = synth_then_run(
+        dir.path(),
+        &[
+            "--scene", "loop", "--blur", "6", "--seed", "2", "--frames", &frames,
+        ],
+        &dataset,
+        &INLINE_SUPERPOINT_ANMS,
+    );
+    let records = report["frames"].as_array().expect("per-frame records");
+    assert_eq!(records.len(), FRAMES);
+    let looked: Vec<String> = records
+        .iter()
+        .filter(|r| !r["second_look"].is_null())
+        .map(|r| {
+            format!(
+                "{}: {} {} {}",
+                r["index"], r["second_look"], r["method"], r["inliers"]
+            )
+        })
+        .collect();
+    eprintln!("second looks: {looked:?}");
+    let corner: Vec<usize> = CORNER
+        .filter(|&i| records[i]["second_look"] == "tracked")
+        .collect();
+    assert!(
+        !corner.is_empty(),
+        "none of the corner's frames was tracked on the second look"
+    );
+    for &k in &corner {
+        assert_eq!(records[k]["state"], "Ok");
+        assert!(
+            records[k]["inliers"].as_u64().unwrap_or(0) >= 30,
+            "frame {k}: {}",
+            records[k]
+        );
+    }
+    let tracked_on_second_look = records
+        .iter()
+        .filter(|r| r["second_look"] == "tracked")
+        .count() as u64;
+    assert_eq!(
+        report["summary"]["tracked_on_second_look"].as_u64(),
+        Some(tracked_on_second_look),
+        "the summary counts the frames tracked on the second look"
+    );
+    assert!(report["summary"]["second_looks"].as_u64() >= Some(tracked_on_second_look));
+    // Their poses against the truth, relative to the frame before.
+    let estimate = read_kitti(&dir.path().join("run/trajectory_kitti.txt")).expect("trajectory");
+    let truth = read_kitti(&dir.path().join("poses/00.txt")).expect("ground truth");
+    for &k in &corner {
+        let step = estimate.poses[k - 1].inverse() * estimate.poses[k];
+        let true_step = truth.poses[k - 1].inverse() * truth.poses[k];
+        let error = true_step.inverse() * step;
+        let metres = error.translation.vector.norm();
+        let degrees = error.rotation.angle().to_degrees();
+        eprintln!("frame {k}: step error {metres:.3} m, {degrees:.2}°");
+        assert!(
+            metres <= MAX_STEP_ERROR_M && degrees <= MAX_STEP_ERROR_DEG,
+            "frame {k}: step {metres:.3} m, {degrees:.2}° off the truth"
+        );
+    }
+}
