@@ -17,9 +17,10 @@
 
 mod common;
 
-use common::cli::{frames_lost_and_maps, run_into, synth_then_run, INLINE_SUPERPOINT_ANMS};
+use common::cli::{
+    blurred_lap_start, frames_lost_and_maps, run_into, step_errors_to_truth, INLINE_SUPERPOINT_ANMS,
+};
 use common::temp_dir::TempDir;
-use spslam::eval::read_kitti;
 
 /// Frames run: past the first corner and the new map it starts.
 const FRAMES: usize = 32;
@@ -36,8 +37,6 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
         return;
     }
     let dir = TempDir::new("blur-corner", "stereo");
-    let frames = FRAMES.to_string();
-    let dataset = format!("synth:{}", dir.path().display());
     // Odometry alone: without the second look, which could track one of
     // the corner's frames on another CPU's int8 network.
     let one_look_args: Vec<&str> = INLINE_SUPERPOINT_ANMS
@@ -45,12 +44,7 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
         .copied()
         .chain(["--second-look-levels", "0"])
         .collect();
-    let report = synth_then_run(
-        dir.path(),
-        &["--scene", "loop", "--blur", "6", "--frames", &frames],
-        &dataset,
-        &one_look_args,
-    );
+    let (report, dataset) = blurred_lap_start(dir.path(), 0, FRAMES, &one_look_args);
     let (records, lost, maps) = frames_lost_and_maps(&report);
     assert_eq!(records.len(), FRAMES);
     let corner: Vec<String> = records[20..28]
@@ -78,16 +72,7 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
         "the summary counts the frames posed by odometry"
     );
     // Each step into a frame posed by odometry, against the truth.
-    let estimate = read_kitti(&dir.path().join("run/trajectory_kitti.txt")).expect("trajectory");
-    let truth = read_kitti(&dir.path().join("poses/00.txt")).expect("ground truth");
-    assert_eq!(estimate.poses.len(), FRAMES);
-    for &k in &by_odometry {
-        let step = estimate.poses[k - 1].inverse() * estimate.poses[k];
-        let true_step = truth.poses[k - 1].inverse() * truth.poses[k];
-        let error = true_step.inverse() * step;
-        let metres = error.translation.vector.norm();
-        let degrees = error.rotation.angle().to_degrees();
-        eprintln!("frame {k}: step error {metres:.3} m, {degrees:.2}°");
+    for (k, metres, degrees) in step_errors_to_truth(dir.path(), &by_odometry) {
         assert!(
             metres <= MAX_STEP_ERROR_M && degrees <= MAX_STEP_ERROR_DEG,
             "frame {k}: step {metres:.3} m, {degrees:.2}° off the truth"

@@ -14,9 +14,8 @@
 
 mod common;
 
-use common::cli::{synth_then_run, INLINE_SUPERPOINT_ANMS};
+use common::cli::{blurred_lap_start, step_errors_to_truth, INLINE_SUPERPOINT_ANMS};
 use common::temp_dir::TempDir;
-use spslam::eval::read_kitti;
 
 /// Frames run: past the first corner.
 const FRAMES: usize = 32;
@@ -36,16 +35,7 @@ fn a_blurred_frame_lost_on_one_level_is_tracked_on_the_second_look() {
         return;
     }
     let dir = TempDir::new("second-look", "stereo");
-    let frames = FRAMES.to_string();
-    let dataset = format!("synth:{}", dir.path().display());
-    let report = synth_then_run(
-        dir.path(),
-        &[
-            "--scene", "loop", "--blur", "6", "--seed", "2", "--frames", &frames,
-        ],
-        &dataset,
-        &INLINE_SUPERPOINT_ANMS,
-    );
+    let (report, _) = blurred_lap_start(dir.path(), 2, FRAMES, &INLINE_SUPERPOINT_ANMS);
     let records = report["frames"].as_array().expect("per-frame records");
     assert_eq!(records.len(), FRAMES);
     let looked: Vec<String> = records
@@ -85,15 +75,7 @@ fn a_blurred_frame_lost_on_one_level_is_tracked_on_the_second_look() {
     );
     assert!(report["summary"]["second_looks"].as_u64() >= Some(tracked_on_second_look));
     // Their poses against the truth, relative to the frame before.
-    let estimate = read_kitti(&dir.path().join("run/trajectory_kitti.txt")).expect("trajectory");
-    let truth = read_kitti(&dir.path().join("poses/00.txt")).expect("ground truth");
-    for &k in &corner {
-        let step = estimate.poses[k - 1].inverse() * estimate.poses[k];
-        let true_step = truth.poses[k - 1].inverse() * truth.poses[k];
-        let error = true_step.inverse() * step;
-        let metres = error.translation.vector.norm();
-        let degrees = error.rotation.angle().to_degrees();
-        eprintln!("frame {k}: step error {metres:.3} m, {degrees:.2}°");
+    for (k, metres, degrees) in step_errors_to_truth(dir.path(), &corner) {
         assert!(
             metres <= MAX_STEP_ERROR_M && degrees <= MAX_STEP_ERROR_DEG,
             "frame {k}: step {metres:.3} m, {degrees:.2}° off the truth"

@@ -80,3 +80,41 @@ pub fn frames_lost_and_maps(
     let maps = records.iter().filter_map(|r| r["map"].as_u64()).collect();
     (records, lost, maps)
 }
+
+/// The start of the blurred lap (`spslam synth --scene loop --blur 6
+/// --seed SEED --frames FRAMES` into `dir`), run with `run_args` into
+/// `dir/run`: its `report.json` and the `--dataset` it was run on.
+pub fn blurred_lap_start(
+    dir: &std::path::Path,
+    seed: u32,
+    frames: usize,
+    run_args: &[&str],
+) -> (serde_json::Value, String) {
+    let (seed, frames) = (seed.to_string(), frames.to_string());
+    let dataset = format!("synth:{}", dir.display());
+    let synth = [
+        "--scene", "loop", "--blur", "6", "--seed", &seed, "--frames", &frames,
+    ];
+    (synth_then_run(dir, &synth, &dataset, run_args), dataset)
+}
+
+/// Each of `frames`' pose relative to the frame before, in `dir/run`'s
+/// trajectory, against the same step in the synthetic scene's truth
+/// (`dir/poses/00.txt`): (frame, metres, degrees), printed.
+pub fn step_errors_to_truth(dir: &std::path::Path, frames: &[usize]) -> Vec<(usize, f64, f64)> {
+    use spslam::eval::read_kitti;
+    let estimate = read_kitti(&dir.join("run/trajectory_kitti.txt")).expect("trajectory");
+    let truth = read_kitti(&dir.join("poses/00.txt")).expect("ground truth");
+    frames
+        .iter()
+        .map(|&k| {
+            let step = estimate.poses[k - 1].inverse() * estimate.poses[k];
+            let true_step = truth.poses[k - 1].inverse() * truth.poses[k];
+            let error = true_step.inverse() * step;
+            let metres = error.translation.vector.norm();
+            let degrees = error.rotation.angle().to_degrees();
+            eprintln!("frame {k}: step error {metres:.3} m, {degrees:.2}°");
+            (k, metres, degrees)
+        })
+        .collect()
+}
