@@ -79,27 +79,30 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
         );
     }
     // With the second look (the default, four levels,
-    // `src/system/second_look.rs`) the corner's frames are looked at
-    // again; here every look failed (measured: frames 21-24 and more, none
-    // tracked). A second look that fails leaves the run as it was: up to
-    // the first frame a second look tracks (none here), every record and
-    // every pose is the one-look run's.
+    // `src/system/second_look.rs`) the corner's lost frames are looked at
+    // again; here every look failed (measured: frames 21-24 and 27-31,
+    // none tracked). A second look that fails leaves the run as it was:
+    // every record and every pose is the one-look run's, up to the loss
+    // in which a look first tracks a frame (none here; another CPU's int8
+    // network may track one, and the frames of that loss are then posed
+    // differently).
     assert_eq!(report["summary"]["second_looks"].as_u64(), Some(0));
     let looked_dir = dir.path().join("run_second_look");
     let looked = run_into(&looked_dir, &dataset, &INLINE_SUPERPOINT_ANMS);
     let looked_records = looked["frames"].as_array().expect("records");
-    let same_until = looked_records
+    let first_tracked = looked_records
         .iter()
         .position(|r| r["second_look"] == "tracked")
         .unwrap_or(FRAMES);
-    let failed_looks = looked_records[..same_until]
+    let mut same_until = first_tracked;
+    while same_until > 0 && !looked_records[same_until - 1]["second_look"].is_null() {
+        same_until -= 1;
+    }
+    let failed_looks = looked_records
         .iter()
         .filter(|r| r["second_look"] == "still_lost")
         .count();
-    assert!(
-        failed_looks >= 4,
-        "failed second looks before frame {same_until}: {failed_looks}"
-    );
+    assert!(failed_looks >= 4, "failed second looks: {failed_looks}");
     let outcome = |r: &serde_json::Value| {
         (
             r["index"].clone(),

@@ -14,7 +14,9 @@
 
 mod common;
 
-use common::cli::{blurred_lap_start, step_errors_to_truth, INLINE_SUPERPOINT_ANMS};
+use common::cli::{
+    blurred_lap_start, run_into, step_errors_to_truth, synth_then_run, INLINE_SUPERPOINT_ANMS,
+};
 use common::temp_dir::TempDir;
 
 /// Frames run: past the first corner.
@@ -58,6 +60,8 @@ fn a_blurred_frame_lost_on_one_level_is_tracked_on_the_second_look() {
     );
     for &k in &corner {
         assert_eq!(records[k]["state"], "Ok");
+        // The step below is from a tracked frame.
+        assert_eq!(records[k - 1]["state"], "Ok", "frame {}", k - 1);
         assert!(
             records[k]["inliers"].as_u64().unwrap_or(0) >= 30,
             "frame {k}: {}",
@@ -81,4 +85,85 @@ fn a_blurred_frame_lost_on_one_level_is_tracked_on_the_second_look() {
             "frame {k}: step {metres:.3} m, {degrees:.2}° off the truth"
         );
     }
+}
+
+/// The blacked-out lap's start (`spslam synth --scene loop --condition
+/// blackout --frames 48`: frames 24-31 black), with and without the second
+/// look. Tracking loses the black frames; the first five (before the
+/// patience) get a second look, which on a black image finds nothing on
+/// any pyramid and any CPU. Those looks leave every record and every pose
+/// as the run without them has it.
+#[test]
+fn second_looks_that_find_nothing_change_nothing() {
+    if !common::model_available("second_looks_that_find_nothing_change_nothing") {
+        return;
+    }
+    let dir = TempDir::new("second-look", "blackout");
+    let dataset = format!("synth:{}", dir.path().display());
+    let looked = synth_then_run(
+        dir.path(),
+        &[
+            "--scene",
+            "loop",
+            "--condition",
+            "blackout",
+            "--frames",
+            "48",
+        ],
+        &dataset,
+        &INLINE_SUPERPOINT_ANMS,
+    );
+    let one_look_args: Vec<&str> = INLINE_SUPERPOINT_ANMS
+        .iter()
+        .copied()
+        .chain(["--second-look-levels", "0"])
+        .collect();
+    let one_look_dir = dir.path().join("run_one_look");
+    let one_look = run_into(&one_look_dir, &dataset, &one_look_args);
+    let looked_frames: Vec<u64> = looked["frames"]
+        .as_array()
+        .expect("records")
+        .iter()
+        .filter(|r| !r["second_look"].is_null())
+        .filter_map(|r| r["index"].as_u64())
+        .collect();
+    eprintln!("second looks at frames {looked_frames:?}");
+    assert!(
+        looked_frames.len() >= 3 && looked_frames.iter().all(|i| (24..32).contains(i)),
+        "second looks at frames {looked_frames:?}, not at the black frames 24-31"
+    );
+    assert_eq!(
+        looked["summary"]["tracked_on_second_look"].as_u64(),
+        Some(0)
+    );
+    assert_eq!(
+        looked["summary"]["second_looks"].as_u64(),
+        Some(looked_frames.len() as u64)
+    );
+    assert_eq!(one_look["summary"]["second_looks"].as_u64(), Some(0));
+    // Every record without its timings and second-look field.
+    let without_looks = |report: &serde_json::Value| {
+        let mut frames = report["frames"].clone();
+        for r in frames.as_array_mut().expect("records") {
+            r["second_look"] = serde_json::Value::Null;
+            r["timings"] = serde_json::Value::Null;
+            r["loop_check_running"] = serde_json::Value::Null;
+            if let Some(mapping) = r["mapping"].as_object_mut() {
+                mapping.remove("elapsed_ms");
+                mapping.remove("step_ms");
+            }
+        }
+        frames
+    };
+    assert!(
+        without_looks(&looked) == without_looks(&one_look),
+        "the second looks changed a record"
+    );
+    let trajectory = |d: &std::path::Path| {
+        std::fs::read_to_string(d.join("trajectory_kitti.txt")).expect("trajectory")
+    };
+    assert!(
+        trajectory(&dir.path().join("run")) == trajectory(&one_look_dir),
+        "the second looks changed the trajectory"
+    );
 }

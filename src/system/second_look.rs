@@ -84,6 +84,8 @@ impl SecondLook {
         if self.failed.is_some() {
             return Ok(None);
         }
+        // The first look's time includes loading the network.
+        let start = Instant::now();
         if self.parts.is_none() {
             match (self.make)() {
                 Ok(frontend) => self.parts = Some(frontend.into_parts()),
@@ -101,7 +103,6 @@ impl SecondLook {
         let Some((extractors, builder)) = self.parts.as_mut() else {
             return Ok(None);
         };
-        let start = Instant::now();
         let features = match extractors.extract(index, images) {
             Ok(features) => features,
             Err(e) => {

@@ -706,7 +706,11 @@ impl SlamSystem {
         };
         let stereo_points = frame.stereo_count();
         let first_try = std::mem::replace(&mut self.tracker, before);
-        let outcome = self.tracker.track(frame, map, queue)?;
+        // The first try counted the points it saw; this one does not.
+        self.tracker.set_point_counting(false);
+        let outcome = self.tracker.track(frame, map, queue);
+        self.tracker.set_point_counting(true);
+        let outcome = outcome?;
         tracing::debug!(
             frame = index,
             tracked = outcome.relative_pose.is_some(),

@@ -36,6 +36,7 @@ use crate::optim::pose_only::{optimise_pose, PoseCorrespondence, PoseOnlyConfig}
 use crate::optim::{LieGroup, Se3};
 
 use super::frame::Frame;
+use super::motion::octave_within;
 use super::pose::frame_observation;
 use super::relocalise::{pnp_ransac_points, PNP_RANSAC_ITERATIONS};
 
@@ -244,7 +245,7 @@ fn guided_step(
         projected.push(ProjectedPoint {
             u: uvr.x as f32,
             v: uvr.y as f32,
-            predicted_octave: kp.octave,
+            predicted_octave: octave_within(kp.octave, current),
             descriptor,
             u_right: None,
         });

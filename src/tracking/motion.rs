@@ -30,8 +30,17 @@ fn motion_model_radius(rig: &CameraRig) -> f32 {
     }
 }
 
+/// A keypoint's octave in another frame, as the predicted octave in
+/// `frame`: the same, or `frame`'s top level when it has fewer (a last
+/// frame extracted on a deeper pyramid by the second look), so that the
+/// search's octave window still reaches `frame`'s levels.
+pub(crate) fn octave_within(octave: i32, frame: &Frame) -> i32 {
+    let top = frame.scales.n_levels().saturating_sub(1);
+    octave.min(i32::try_from(top).unwrap_or(i32::MAX))
+}
+
 /// Projects the last frame's points with the current pose estimate,
-/// predicting each at the octave it was seen at.
+/// predicting each at the octave it was seen at (see [`octave_within`]).
 fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &CameraRig) -> Vec<VisiblePoint> {
     let mut out = Vec::new();
     for (i, point) in last.map_points.iter().enumerate() {
@@ -47,7 +56,7 @@ fn last_frame_points(frame: &Frame, last: &Frame, map: &Map, rig: &CameraRig) ->
             u: uvr.x as f32,
             v: uvr.y as f32,
             u_right: uvr.z as f32,
-            octave: last.features.keypoints[i].octave,
+            octave: octave_within(last.features.keypoints[i].octave, frame),
             frontal: true,
         });
     }

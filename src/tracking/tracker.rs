@@ -78,9 +78,10 @@ impl TrackOutcome {
 /// Tracks frames against a map.
 ///
 /// A clone is a snapshot of the tracking state (the last frame, the
-/// motion, the current loss): tracking a frame that ends lost only reads
-/// the map, so restoring the snapshot undoes the try (the system's second
-/// look at a lost frame does).
+/// motion, the current loss): a try at a frame that ends lost writes
+/// nothing to the map but the points' visible and found counts (which
+/// [`Self::set_point_counting`] turns off), so restoring the snapshot
+/// undoes the try (the system's second look at a lost frame does).
 #[derive(Debug, Clone)]
 pub struct Tracker {
     rig: CameraRig,
@@ -120,6 +121,10 @@ pub struct Tracker {
     /// velocity when it began, then each measured step; what the next
     /// gap frame's odometry predicts from.
     gap_velocity: Option<Se3>,
+    /// Whether local-map tracking counts the points it sees and finds
+    /// (`visible`, `found`); off for a frame's second try, whose first
+    /// already counted (see [`Self::set_point_counting`]).
+    counts_points: bool,
 }
 
 /// `frame`'s pose relative to `reference` (`T_c,ref`); `None` without one.
@@ -254,7 +259,17 @@ impl Tracker {
             mono_init: MonoInitialiser::default(),
             lost_frames: Vec::new(),
             gap_velocity: None,
+            counts_points: true,
         }
+    }
+
+    /// Whether local-map tracking raises the map points' `visible` and
+    /// `found` counts (on by default). The only write a try that ends
+    /// lost makes to the map; a second try at the same frame turns it off,
+    /// so that a frame counts once and a second try that fails leaves the
+    /// map as the first left it.
+    pub fn set_point_counting(&mut self, on: bool) {
+        self.counts_points = on;
     }
 
     /// Localisation only (ORB-SLAM3's localization mode): tracking never
@@ -830,7 +845,11 @@ impl Tracker {
             map,
             &self.rig,
             recently_relocalised,
-            PointCounting::Count,
+            if self.counts_points {
+                PointCounting::Count
+            } else {
+                PointCounting::ReadOnly
+            },
         )?;
         tracing::debug!(
             frame = frame.index,

@@ -105,6 +105,7 @@ pub fn step_errors_to_truth(dir: &std::path::Path, frames: &[usize]) -> Vec<(usi
     use spslam::eval::read_kitti;
     let estimate = read_kitti(&dir.join("run/trajectory_kitti.txt")).expect("trajectory");
     let truth = read_kitti(&dir.join("poses/00.txt")).expect("ground truth");
+    assert_eq!(estimate.poses.len(), truth.poses.len(), "one row per frame");
     frames
         .iter()
         .map(|&k| {
