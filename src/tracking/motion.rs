@@ -343,3 +343,31 @@ fn track_by_descriptors(
     }
     Ok(from_last >= MIN_POSE_INLIERS)
 }
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+
+    use super::octave_within;
+    use crate::features::pyramid::ScaleTables;
+    use crate::test_world::{pose_at, PointWorld};
+
+    #[test]
+    fn an_octave_beyond_the_frames_pyramid_is_its_top_level() {
+        let world = PointWorld::new(3, 10, (3.0, 2.0, 8.0, 12.0));
+        let (mut frame, _) = world.frame(0, &pose_at(Vector3::zeros(), 0.0), true);
+        // Eight levels: every octave of a four-level frame is kept.
+        assert_eq!(
+            (0..4).map(|o| octave_within(o, &frame)).collect::<Vec<_>>(),
+            [0, 1, 2, 3]
+        );
+        // One level (the default run's pyramid): a four-level last frame's
+        // octaves 1-3 are searched on level 0.
+        frame.scales = ScaleTables::new(1000, 1.2, 1);
+        assert_eq!(
+            (0..4).map(|o| octave_within(o, &frame)).collect::<Vec<_>>(),
+            [0, 0, 0, 0]
+        );
+        assert_eq!(octave_within(-1, &frame), -1, "an unset octave stays unset");
+    }
+}
