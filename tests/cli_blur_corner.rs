@@ -18,7 +18,8 @@
 mod common;
 
 use common::cli::{
-    blurred_lap_start, frames_lost_and_maps, run_into, step_errors_to_truth, INLINE_SUPERPOINT_ANMS,
+    blurred_lap_start, frames_lost_and_maps, run_into, step_errors_to_truth,
+    INLINE_SUPERPOINT_ANMS, INLINE_SUPERPOINT_ANMS_ONE_LOOK,
 };
 use common::temp_dir::TempDir;
 
@@ -39,12 +40,8 @@ fn the_blurred_corners_lost_frames_are_posed_by_odometry() {
     let dir = TempDir::new("blur-corner", "stereo");
     // Odometry alone: without the second look, which could track one of
     // the corner's frames on another CPU's int8 network.
-    let one_look_args: Vec<&str> = INLINE_SUPERPOINT_ANMS
-        .iter()
-        .copied()
-        .chain(["--second-look-levels", "0"])
-        .collect();
-    let (report, dataset) = blurred_lap_start(dir.path(), 0, FRAMES, &one_look_args);
+    let (report, dataset) =
+        blurred_lap_start(dir.path(), 0, FRAMES, &INLINE_SUPERPOINT_ANMS_ONE_LOOK);
     let (records, lost, maps) = frames_lost_and_maps(&report);
     assert_eq!(records.len(), FRAMES);
     let corner: Vec<String> = records[20..28]

@@ -16,6 +16,7 @@ mod common;
 
 use common::cli::{
     blurred_lap_start, run_into, step_errors_to_truth, synth_then_run, INLINE_SUPERPOINT_ANMS,
+    INLINE_SUPERPOINT_ANMS_ONE_LOOK,
 };
 use common::temp_dir::TempDir;
 
@@ -78,6 +79,7 @@ fn a_blurred_frame_lost_on_one_level_is_tracked_on_the_second_look() {
         "the summary counts the frames tracked on the second look"
     );
     assert!(report["summary"]["second_looks"].as_u64() >= Some(tracked_on_second_look));
+    assert_eq!(report["summary"]["second_look_levels"].as_u64(), Some(4));
     // Their poses against the truth, relative to the frame before.
     for (k, metres, degrees) in step_errors_to_truth(dir.path(), &corner) {
         assert!(
@@ -113,13 +115,8 @@ fn second_looks_that_find_nothing_change_nothing() {
         &dataset,
         &INLINE_SUPERPOINT_ANMS,
     );
-    let one_look_args: Vec<&str> = INLINE_SUPERPOINT_ANMS
-        .iter()
-        .copied()
-        .chain(["--second-look-levels", "0"])
-        .collect();
     let one_look_dir = dir.path().join("run_one_look");
-    let one_look = run_into(&one_look_dir, &dataset, &one_look_args);
+    let one_look = run_into(&one_look_dir, &dataset, &INLINE_SUPERPOINT_ANMS_ONE_LOOK);
     let looked_frames: Vec<u64> = looked["frames"]
         .as_array()
         .expect("records")

@@ -67,9 +67,6 @@ pub struct AssembledSystem {
     pub inference: String,
     /// The pyramid levels used.
     pub levels: usize,
-    /// The second look's pyramid levels, when lost frames get one
-    /// ([`SlamSettings`]' `second_look_levels_for`).
-    pub second_look_levels: Option<usize>,
     /// The extractor settings, model and codebook a saved map records.
     pub provenance: MapProvenance,
 }
@@ -154,8 +151,7 @@ pub fn assemble_system(
         None => Frontend::single(left, &rig)?,
     };
     let mut system = SlamSystem::new(rig, frontend);
-    let second_look_levels = settings.extractor.second_look_levels_for(levels);
-    if let Some(deeper) = second_look_levels {
+    if let Some(deeper) = settings.extractor.second_look_levels_for(levels) {
         let (kind, settings) = (options.extractor, settings.clone());
         system.set_second_look(Some(SecondLook::new(
             deeper,
@@ -202,7 +198,6 @@ pub fn assemble_system(
         system,
         inference,
         levels,
-        second_look_levels,
         provenance: MapProvenance {
             extractor_settings: format!("{:?}", settings.extractor),
             model_hash,

@@ -162,6 +162,8 @@ pub struct SlamSummary {
     /// tracked frame odometry measured, step by step (tracking itself
     /// stayed lost).
     pub by_odometry: usize,
+    /// The second look's pyramid levels (`None`: lost frames get none).
+    pub second_look_levels: Option<usize>,
     /// Frames given a second look (extracted again on a deeper pyramid
     /// after their first try was lost).
     pub second_looks: usize,

@@ -221,6 +221,7 @@ impl SlamSystem {
     pub fn summary(&self) -> Result<SlamSummary, SlamError> {
         let mut s = SlamSummary {
             frames: self.records.len(),
+            second_look_levels: self.second_look_levels(),
             ..SlamSummary::default()
         };
         for entry in self.atlas.maps() {

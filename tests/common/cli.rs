@@ -13,6 +13,18 @@ pub const INLINE_SUPERPOINT_ANMS: [&str; 5] = [
     "kdtree",
 ];
 
+/// [`INLINE_SUPERPOINT_ANMS`] without the second look at lost frames
+/// (`--second-look-levels 0`).
+pub const INLINE_SUPERPOINT_ANMS_ONE_LOOK: [&str; 7] = [
+    "--inline-mapping",
+    "--extractor",
+    "superpoint",
+    "--anms",
+    "kdtree",
+    "--second-look-levels",
+    "0",
+];
+
 /// A command for the `spslam` binary Cargo built for the tests.
 pub fn spslam() -> Command {
     Command::new(env!("CARGO_BIN_EXE_spslam"))
