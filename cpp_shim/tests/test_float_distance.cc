@@ -37,7 +37,7 @@ int main()
 {
     std::mt19937 rng(7);
     std::normal_distribution<float> normal(0.f, 1.f);
-    for (int n : {0, 1, 3, 4, 7, 32, 255, 256})
+    for (int n : {0, 1, 3, 4, 7, 31, 32, 33, 64, 100, 255, 256, 257})
     {
         std::vector<float> a(n), b(n);
         for (int i = 0; i < n; ++i)

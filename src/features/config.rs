@@ -170,6 +170,15 @@ impl Default for ExtractorConfig {
     }
 }
 
+/// ONNX Runtime intra-op threads for each of `concurrent` extractors that
+/// run at once (a stereo pair: 2): this machine's cores shared out, at least
+/// one each. More threads than cores make ONNX Runtime's idle workers spin
+/// against each other's busy ones.
+pub fn threads_per_extractor(concurrent: usize) -> usize {
+    let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+    (cores / concurrent.max(1)).max(1)
+}
+
 /// The fp32 model used when none is given: `SPSLAM_MODEL`, else
 /// `superpoint.onnx` in the models folder (`SPSLAM_MODELS_DIR`, else `models/` in the crate root, where `make setup` writes it).
 pub fn default_model_path() -> PathBuf {
@@ -191,6 +200,14 @@ impl ExtractorConfig {
 
     /// Builds a config from ORB-SLAM3's five extractor parameters, with
     /// everything else at its default. See the type's docs for the mapping.
+    ///
+    /// ONNX Runtime gets [`threads_per_extractor`]`(2)` threads: ORB-SLAM3's
+    /// stereo frame runs its left and right extractors at once, beside local
+    /// mapping. ONNX Runtime's own choice (a thread per core for each) puts
+    /// twice as many busy threads as cores, whose idle ones spin: the preload
+    /// in the real ORB-SLAM3 took 446-478 ms per KITTI frame that way against
+    /// 272-279 ms with one thread each (lite, int8, 8 levels, 2 cores;
+    /// EVALUATION.md, "Inside ORB-SLAM3: the preload with lite").
     pub fn from_orb_slam3(
         nfeatures: i32,
         scale_factor: f32,
@@ -204,6 +221,7 @@ impl ExtractorConfig {
             n_levels: nlevels.max(0) as usize,
             threshold: ini_th_fast as f32 / 4000.0,
             min_threshold: min_th_fast as f32 / 4000.0,
+            threads: threads_per_extractor(2),
             ..Self::default()
         }
     }

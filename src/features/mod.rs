@@ -26,7 +26,9 @@ pub mod pyramid;
 pub mod runtime;
 pub mod sign_bits;
 
-pub use config::{default_model_path, AnmsMethod, ExtractorConfig, PeriodicFilterConfig};
+pub use config::{
+    default_model_path, threads_per_extractor, AnmsMethod, ExtractorConfig, PeriodicFilterConfig,
+};
 pub use descriptor_set::{DescriptorKind, DescriptorRef, DescriptorSet};
 pub use device::Device;
 pub use distance_thresholds::DistanceThresholds;

@@ -8,7 +8,9 @@ use std::sync::Arc;
 
 use crate::camera::{CameraRig, Sensor};
 use crate::error::SlamError;
-use crate::features::{FeatureExtractor, OrbConfig, OrbExtractor, SuperPointExtractor};
+use crate::features::{
+    threads_per_extractor, FeatureExtractor, OrbConfig, OrbExtractor, SuperPointExtractor,
+};
 use crate::loop_closing::LoopThresholds;
 use crate::place::{default_codebook_for, Codebook};
 use crate::settings::SlamSettings;
@@ -107,7 +109,7 @@ fn extractors(
         ExtractorKind::SuperPoint => {
             // One ONNX Runtime thread pool per image; a stereo pair's two
             // run in parallel, a single image gets every core.
-            let threads = if stereo { cores() / 2 } else { cores() };
+            let threads = threads_per_extractor(if stereo { 2 } else { 1 });
             let config = e.superpoint_config(levels, threads);
             let right: Option<Box<dyn FeatureExtractor>> = if stereo {
                 Some(Box::new(
@@ -122,10 +124,6 @@ fn extractors(
             ))
         }
     }
-}
-
-fn cores() -> usize {
-    std::thread::available_parallelism().map_or(2, |n| n.get())
 }
 
 /// Builds the system for `sensor` on images of `size` (width, height):
@@ -177,7 +175,9 @@ pub fn assemble_system(
     };
     let mut codebook_hash = None;
     if options.loop_closing && superpoint {
-        let config = settings.extractor.superpoint_config(levels, cores() / 2);
+        let config = settings
+            .extractor
+            .superpoint_config(levels, threads_per_extractor(2));
         let path = options
             .codebook
             .clone()

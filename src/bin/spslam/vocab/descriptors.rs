@@ -7,8 +7,8 @@ use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use spslam::features::sign_bits::pack_sign_bits;
 use spslam::features::{
-    DescriptorSet, ExtractorConfig, FeatureExtractor, GrayImage, OrbConfig, OrbExtractor,
-    Precision, SuperPointExtractor,
+    threads_per_extractor, DescriptorSet, ExtractorConfig, FeatureExtractor, GrayImage, OrbConfig,
+    OrbExtractor, Precision, SuperPointExtractor,
 };
 use spslam::place::DescriptorRows;
 use spslam::settings::{ExtractorSettings, SlamSettings, DEFAULT_SUPERPOINT_LEVELS};
@@ -84,6 +84,8 @@ pub fn extractor(args: &TrainArgs) -> Result<Box<dyn FeatureExtractor>> {
                 e.min_th_fast,
             );
             config.precision = args.precision.unwrap_or(Precision::Fp32);
+            // One image at a time here, not ORB-SLAM3's stereo pair at once.
+            config.threads = threads_per_extractor(1);
             config
         }
         // As `spslam extract` with its defaults.
