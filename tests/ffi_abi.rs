@@ -248,6 +248,26 @@ fn c_abi_equals_the_rust_api_on_kitti() {
     assert!(last_error().contains("capacity"), "{}", last_error());
 }
 
+/// ORB-SLAM3 extracts a stereo pair on two threads at once: each extractor
+/// gets half the cores (at least one), not ONNX Runtime's thread per core
+/// (EVALUATION.md, "Inside ORB-SLAM3: the preload with lite").
+#[test]
+fn orb_slam3_config_shares_the_cores_between_the_stereo_pair() {
+    let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
+    let config = orb_slam3_c_config();
+    assert_eq!(config.threads as usize, (cores / 2).max(1));
+    let mut default = std::mem::MaybeUninit::<SpslamConfig>::uninit();
+    // SAFETY: `default` is writable.
+    let status = unsafe { spslam_config_default(default.as_mut_ptr()) };
+    assert_eq!(status, SpslamStatus::Ok, "{}", last_error());
+    // SAFETY: initialised by the successful call.
+    assert_eq!(
+        unsafe { default.assume_init() }.threads,
+        0,
+        "the default is ONNX Runtime's choice"
+    );
+}
+
 #[test]
 fn two_handles_on_two_threads_match_sequential_runs() {
     let (Some(left), Some(right)) = (inputs("image_0"), inputs("image_1")) else {
