@@ -327,9 +327,9 @@ fn lost_rows_omit_leaves_untracked_frames_out_of_tum_files_and_is_refused_for_ki
     );
 }
 
-/// SuperPoint's default pyramid is chosen by the sensor
+/// SuperPoint's default pyramid is chosen by the sensor and the model
 /// (`ExtractorSettings::superpoint_levels_for`): one level with a depth,
-/// four without; `--levels` overrides it for both.
+/// four without, one without for SuperPoint-Lite; `--levels` overrides it.
 #[test]
 fn superpoint_levels_default_to_one_with_a_depth_and_four_without() {
     if !common::model_available("superpoint_levels_default_to_one_with_a_depth_and_four_without") {
@@ -337,8 +337,17 @@ fn superpoint_levels_default_to_one_with_a_depth_and_four_without() {
     }
     let data = synth("levels");
     let synth_dataset = format!("synth:{}", data.path().display());
-    for (sensor, extra, levels) in [("rgbd", None, 1), ("mono", None, 4), ("mono", Some("2"), 2)] {
-        let out = data.path().join(format!("out-{sensor}-{levels}"));
+    for (sensor, extra, model, levels) in [
+        ("rgbd", None, None, 1),
+        ("mono", None, None, 4),
+        ("mono", Some("2"), None, 2),
+        ("mono", None, Some("lite"), 1),
+        ("mono", Some("2"), Some("lite"), 2),
+    ] {
+        let out = data.path().join(format!(
+            "out-{sensor}-{levels}-{}",
+            model.unwrap_or("default")
+        ));
         let mut command = spslam();
         command
             .arg("run")
@@ -355,13 +364,16 @@ fn superpoint_levels_default_to_one_with_a_depth_and_four_without() {
         if let Some(n) = extra {
             command.args(["--levels", n]);
         }
+        if let Some(m) = model {
+            command.args(["--model", m]);
+        }
         let output = command.output().expect("run spslam run");
         assert_eq!(output.status.code(), Some(0), "{}", logs(&output));
         let r = report(&out);
         let inference = r["inference"].as_str().unwrap_or_default();
         assert!(
             inference.ends_with(&format!(", {levels} levels")),
-            "{sensor} {extra:?}: {inference}"
+            "{sensor} {extra:?} {model:?}: {inference}"
         );
     }
 }

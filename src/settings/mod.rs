@@ -11,7 +11,8 @@
 //! - `SuperPoint.anms`: `kdtree` (default), `ssc` or `none`;
 //! - `SuperPoint.nLevels`: SuperPoint's pyramid levels in `spslam run`
 //!   (default [`DEFAULT_SUPERPOINT_LEVELS`] with a depth,
-//!   [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] without; see
+//!   [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] without,
+//!   [`DEFAULT_MONOCULAR_LITE_LEVELS`] without for SuperPoint-Lite; see
 //!   [`ExtractorSettings::superpoint_levels_for`]; `ORBextractor.nLevels`
 //!   stays ORB's, and the C++ shim's);
 //! - `SuperPoint.secondLookLevels`: the pyramid levels a frame tracking
@@ -43,8 +44,8 @@ pub use error::{Result, SettingsError};
 use reader::SettingsReader;
 
 use crate::features::{
-    AnmsMethod, Device, ExposureConfig, ExposureMode, ExtractorConfig, PeriodicFilterConfig,
-    Precision,
+    AnmsMethod, Device, ExposureConfig, ExposureMode, ExtractorConfig, ModelWeights,
+    PeriodicFilterConfig, Precision,
 };
 
 /// A pinhole camera, rectified (stereo) or with radial-tangential distortion.
@@ -100,6 +101,16 @@ pub const DEFAULT_SUPERPOINT_LEVELS: usize = 1;
 /// levels beat one on the real and synthetic cases at 2.1–2.8× the time
 /// per frame.
 pub const DEFAULT_MONOCULAR_SUPERPOINT_LEVELS: usize = 4;
+
+/// SuperPoint-Lite's pyramid levels in a monocular `spslam run` when the
+/// settings do not say: one, unlike the full models
+/// ([`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`]). Measured over seven
+/// monocular cases (EVALUATION.md, "SuperPoint-Lite's monocular pyramid"):
+/// lite on four levels lost to lite on one on six of them (KITTI 07
+/// 0.793 m against 0.325 m Sim3, the four renderings of the lap 1.3–3.6×,
+/// the kitchen by 1.5 %), winning only the blacked-out lap, and one level
+/// is lite's point: real time on a CPU.
+pub const DEFAULT_MONOCULAR_LITE_LEVELS: usize = 1;
 
 /// Pyramid levels of the second look at a frame tracking lost, when the
 /// settings do not say (`SuperPoint.secondLookLevels`): a frame that could
@@ -176,15 +187,26 @@ impl Default for ExtractorSettings {
 impl ExtractorSettings {
     /// SuperPoint's pyramid levels for a run with (`monocular == false`)
     /// or without a depth: `SuperPoint.nLevels` when the settings say,
-    /// else [`DEFAULT_SUPERPOINT_LEVELS`] or
-    /// [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`]. The one place that decides
-    /// the default pyramid of `spslam run`.
+    /// else [`DEFAULT_SUPERPOINT_LEVELS`] with a depth, and without one
+    /// [`DEFAULT_MONOCULAR_LITE_LEVELS`] for SuperPoint-Lite's model files
+    /// ([`ModelWeights::of_file`] of the model these settings resolve to),
+    /// [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] for any other. The one
+    /// place that decides the default pyramid of `spslam run`.
     pub fn superpoint_levels_for(&self, monocular: bool) -> usize {
-        self.superpoint_levels.unwrap_or(if monocular {
-            DEFAULT_MONOCULAR_SUPERPOINT_LEVELS
-        } else {
+        self.superpoint_levels.unwrap_or(if !monocular {
             DEFAULT_SUPERPOINT_LEVELS
+        } else if self.weights() == Some(ModelWeights::Lite) {
+            DEFAULT_MONOCULAR_LITE_LEVELS
+        } else {
+            DEFAULT_MONOCULAR_SUPERPOINT_LEVELS
         })
+    }
+
+    /// The named weights of the model file these settings resolve to (the
+    /// model, else the precision's default and its environment variables);
+    /// `None` for a file of other weights.
+    pub fn weights(&self) -> Option<ModelWeights> {
+        ModelWeights::of_file(&self.superpoint_config(1, 1).resolved_model_path())
     }
 
     /// The pyramid levels of the second look at a frame tracking lost on a

@@ -111,7 +111,8 @@ pub struct RunArgs {
     no_keyframe_culling: bool,
     /// Pyramid levels for the extractor [default: the settings'
     /// SuperPoint.nLevels for SuperPoint (when absent: 1 for stereo and RGB-D,
-    /// 4 for monocular), ORBextractor.nLevels for ORB].
+    /// 4 for monocular, 1 for monocular with --model lite), ORBextractor.nLevels
+    /// for ORB].
     #[arg(long)]
     levels: Option<usize>,
     /// Pyramid levels of the second look at a frame tracking lost: its
