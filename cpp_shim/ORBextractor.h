@@ -27,10 +27,11 @@
  *    .deps/onnxruntime/ in the spslam source tree. Only the first extractor in
  *    a process loads the library;
  *  - SPSLAM_THREADS (optional): ONNX Runtime intra-op threads per extractor
- *    (default: half the machine's cores, at least one, since ORB-SLAM3 runs
- *    a stereo pair's two extractors at once; 0 = let ONNX Runtime decide,
- *    a thread per core for each, whose idle threads then spin against the
- *    other extractor's);
+ *    (default: half the CPUs available to the process, at least one, since
+ *    ORB-SLAM3 runs a stereo pair's two extractors at once; a monocular or
+ *    RGB-D ORB-SLAM3 runs one at a time and may want all of them; 0 = let
+ *    ONNX Runtime decide, a thread per core for each, whose idle threads
+ *    then spin against the other extractor's);
  *  - SPSLAM_PRECISION (optional): fp32 (the shim's default: ORB-SLAM3 runs
  *    nLevels, usually 8, where the int8 model loses accuracy) or int8
  *    (about 3x faster);

@@ -381,10 +381,11 @@ SpslamStatus spslam_config_default(struct SpslamConfig *out);
 
 /**
  * Fills `out` from ORB-SLAM3's five extractor parameters (threshold =
- * iniThFAST / 4000, min_threshold = minThFAST / 4000), `threads` half this
- * machine's cores (at least one: ORB-SLAM3 runs a stereo pair's two
- * extractors at once), everything else at its default. Values are checked by [`spslam_extractor_create`]; negative counts
- * are rejected here.
+ * iniThFAST / 4000, min_threshold = minThFAST / 4000), `threads` half the
+ * CPUs available to the process (at least one: ORB-SLAM3 runs a stereo
+ * pair's two extractors at once), everything else at its default. Values
+ * are checked by [`spslam_extractor_create`]; negative counts are
+ * rejected here.
  *
  * # Safety
  * `out` is NULL (→ `SPSLAM_STATUS_NULL_POINTER`) or valid for writing one `SpslamConfig`.

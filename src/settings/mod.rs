@@ -87,7 +87,8 @@ impl CameraSettings {
 /// drifts 0.93 % on one int8 level against 0.55 % on eight (fp32: 0.88 %
 /// and 0.36 %). Set `SuperPoint.nLevels: 8` (or
 /// `--levels 8`) for ORB-SLAM3's pyramid. Monocular runs take
-/// [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] instead.
+/// [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] instead (SuperPoint-Lite's:
+/// [`DEFAULT_MONOCULAR_LITE_LEVELS`]).
 pub const DEFAULT_SUPERPOINT_LEVELS: usize = 1;
 
 /// SuperPoint's pyramid levels in a monocular `spslam run` when the
@@ -136,7 +137,8 @@ pub struct ExtractorSettings {
     pub n_levels: usize,
     /// SuperPoint's pyramid levels in `spslam run` (`SuperPoint.nLevels`),
     /// `None` when the settings do not say, whatever `ORBextractor.nLevels`
-    /// says: [`Self::superpoint_levels_for`] then picks the sensor's default.
+    /// says: [`Self::superpoint_levels_for`] then picks the sensor's and the
+    /// model's default.
     pub superpoint_levels: Option<usize>,
     /// The second look's pyramid levels (`SuperPoint.secondLookLevels`;
     /// 0: no second look), `None` when the settings do not say
@@ -202,11 +204,15 @@ impl ExtractorSettings {
         })
     }
 
-    /// The named weights of the model file these settings resolve to (the
-    /// model, else the precision's default and its environment variables);
-    /// `None` for a file of other weights.
+    /// The named weights these settings run ([`ExtractorConfig::weights`]
+    /// of their model and precision); `None` for a file of other weights.
     pub fn weights(&self) -> Option<ModelWeights> {
-        ModelWeights::of_file(&self.superpoint_config(1, 1).resolved_model_path())
+        ExtractorConfig {
+            model_path: self.model.clone(),
+            precision: self.precision,
+            ..ExtractorConfig::default()
+        }
+        .weights()
     }
 
     /// The pyramid levels of the second look at a frame tracking lost on a
@@ -214,8 +220,9 @@ impl ExtractorSettings {
     /// settings say (0: never), else [`DEFAULT_SECOND_LOOK_LEVELS`]; `None`
     /// when that is not more than `levels` (an ORB run on eight levels,
     /// a monocular run on four), since the same pyramid would see the
-    /// same keypoints. The one place that decides whether a run takes a
-    /// second look.
+    /// same keypoints. A monocular run with lite's model is on one level
+    /// ([`DEFAULT_MONOCULAR_LITE_LEVELS`]), so it takes the look. The one
+    /// place that decides whether a run takes a second look.
     pub fn second_look_levels_for(&self, levels: usize) -> Option<usize> {
         let wanted = self
             .second_look_levels

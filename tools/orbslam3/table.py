@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
 """Markdown rows from `make orbslam3-check` results (tools/orbslam3/check.py's
-summary.json), one row per mode of each summary, with the commit and machine.
+summary.json), one row per mode of each summary, stamped with the commit and
+machine where the table is written (a summary does not record where it was
+measured: say so beside the table when they differ).
 
   python3 tools/orbslam3/table.py [--label NAME=DIR ...] DIR_OR_SUMMARY ...
 
@@ -32,8 +34,16 @@ def machine():
 
 
 def commit():
-    r = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True)
+    try:
+        r = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True)
+    except OSError:
+        return "unknown"
     return r.stdout.strip() or "unknown"
+
+
+def metres(stat):
+    """A check's ATE statistics as "0.0123 m", or "–" when no run gave one."""
+    return f"{stat['mean']:.4f} m" if isinstance(stat, dict) and stat.get("mean") is not None else "–"
 
 
 def main():
@@ -62,8 +72,8 @@ def main():
             tracked = ", ".join(f"{r.get('tracked_ok', '?')}/{r.get('frames', '?')}" for r in runs)
             model = "–" if mode == "orb" else labels.get(folder, s.get("model", "?"))
             ms = ", ".join(f"{r['mean_frame_ms']:.0f}" for r in runs if "mean_frame_ms" in r)
-            print(f"| {mode} | {model} | {len(runs)} | {tracked} | {m['ate_se3_m']['mean']:.4f} m "
-                  f"| {m['ate_sim3_m']['mean']:.4f} m | {ms} |")
+            print(f"| {mode} | {model} | {len(runs)} | {tracked} | {metres(m.get('ate_se3_m'))} "
+                  f"| {metres(m.get('ate_sim3_m'))} | {ms or '–'} |")
 
 
 if __name__ == "__main__":

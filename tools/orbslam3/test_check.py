@@ -61,5 +61,33 @@ class FloatAteBounds(unittest.TestCase):
         self.assertEqual(check.float_ate_failures({"orb": {"ate_se3_m": None}}, args(OTHER)), [])
 
 
+class SummaryTable(unittest.TestCase):
+    """tools/orbslam3/table.py: one row per mode, a dash where no run gave a figure."""
+
+    def test_a_mode_whose_runs_all_failed_gets_dashes(self):
+        import contextlib
+        import io
+        import json
+        import tempfile
+
+        import table  # noqa: E402  (same folder)
+
+        summary = {"model": "lite", "modes": {
+            "orb": {"runs": [{"frames": 51, "tracked_ok": 51, "mean_frame_ms": 44.2}],
+                    "ate_se3_m": {"mean": 0.0534}, "ate_sim3_m": {"mean": 0.0215}},
+            "float": {"runs": [{"exit_status": 78}], "ate_se3_m": None, "ate_sim3_m": None},
+        }}
+        with tempfile.TemporaryDirectory() as folder:
+            with open(os.path.join(folder, "summary.json"), "w") as f:
+                json.dump(summary, f)
+            out = io.StringIO()
+            with contextlib.redirect_stdout(out):
+                sys.argv = ["table.py", folder]
+                table.main()
+        rows = [line for line in out.getvalue().splitlines() if line.startswith("| orb") or line.startswith("| float")]
+        self.assertEqual(rows, ["| orb | – | 1 | 51/51 | 0.0534 m | 0.0215 m | 44 |",
+                                "| float | lite | 1 | ?/? | – | – | – |"])
+
+
 if __name__ == "__main__":
     unittest.main(verbosity=2)

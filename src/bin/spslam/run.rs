@@ -111,7 +111,7 @@ pub struct RunArgs {
     no_keyframe_culling: bool,
     /// Pyramid levels for the extractor [default: the settings'
     /// SuperPoint.nLevels for SuperPoint (when absent: 1 for stereo and RGB-D,
-    /// 4 for monocular, 1 for monocular with --model lite), ORBextractor.nLevels
+    /// 4 for monocular, 1 for monocular with lite's model), ORBextractor.nLevels
     /// for ORB].
     #[arg(long)]
     levels: Option<usize>,
