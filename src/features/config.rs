@@ -173,8 +173,8 @@ impl Default for ExtractorConfig {
 /// ONNX Runtime intra-op threads for each of `concurrent` extractors that
 /// run at once (a stereo pair: 2): the CPUs available to this process
 /// (`std::thread::available_parallelism`: affinity and cgroup limits
-/// included) shared out, at least one each. More threads than cores make ONNX Runtime's idle workers spin
-/// against each other's busy ones.
+/// included) shared out, at least one each. More threads than cores make
+/// ONNX Runtime's idle workers spin against each other's busy ones.
 pub fn threads_per_extractor(concurrent: usize) -> usize {
     let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
     (cores / concurrent.max(1)).max(1)

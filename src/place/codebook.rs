@@ -322,6 +322,7 @@ mod tests {
     #[test]
     fn the_default_codebook_follows_the_models_name_or_file_name() {
         if std::env::var_os("SPSLAM_CODEBOOK").is_some() {
+            eprintln!("SKIPPED: SPSLAM_CODEBOOK overrides every default codebook");
             return;
         }
         let file = |model: &str, precision| {

@@ -190,8 +190,8 @@ impl ExtractorSettings {
     /// SuperPoint's pyramid levels for a run with (`monocular == false`)
     /// or without a depth: `SuperPoint.nLevels` when the settings say,
     /// else [`DEFAULT_SUPERPOINT_LEVELS`] with a depth, and without one
-    /// [`DEFAULT_MONOCULAR_LITE_LEVELS`] for SuperPoint-Lite's model files
-    /// ([`ModelWeights::of_file`] of the model these settings resolve to),
+    /// [`DEFAULT_MONOCULAR_LITE_LEVELS`] for SuperPoint-Lite's model
+    /// ([`Self::weights`]),
     /// [`DEFAULT_MONOCULAR_SUPERPOINT_LEVELS`] for any other. The one
     /// place that decides the default pyramid of `spslam run`.
     pub fn superpoint_levels_for(&self, monocular: bool) -> usize {

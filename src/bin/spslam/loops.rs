@@ -27,7 +27,9 @@ use anyhow::{Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use spslam::eval::place_recognition::{CandidateTruth, RevisitTruth};
-use spslam::features::{DescriptorSet, Device, GrayImage, SuperPointExtractor};
+use spslam::features::{
+    threads_per_extractor, DescriptorSet, Device, GrayImage, SuperPointExtractor,
+};
 use spslam::place::{
     default_codebook_for, Codebook, GlobalDescriptor, KeyframeDatabase, PlaceError, QueryOptions,
 };
@@ -153,13 +155,12 @@ pub fn run_loops(args: LoopsArgs) -> Result<()> {
     let mut input = Input::open(&args)?;
     let names = input.names();
     // `spslam run`'s extractor with its defaults.
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let settings = ExtractorSettings {
         device: args.device,
         model: args.model.clone(),
         ..ExtractorSettings::default()
     };
-    let config = settings.superpoint_config(DEFAULT_SUPERPOINT_LEVELS, cores);
+    let config = settings.superpoint_config(DEFAULT_SUPERPOINT_LEVELS, threads_per_extractor(1));
     let codebook_path = args
         .codebook
         .clone()

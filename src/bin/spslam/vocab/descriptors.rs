@@ -129,8 +129,7 @@ pub fn run_superpoint_config(args: &TrainArgs) -> Result<ExtractorConfig> {
     let levels = args
         .pyramid_levels
         .unwrap_or(e.superpoint_levels_for(false));
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    Ok(e.superpoint_config(levels, cores))
+    Ok(e.superpoint_config(levels, threads_per_extractor(1)))
 }
 
 /// Runs `extractor` over `paths`, with a progress bar, keeping the rows
