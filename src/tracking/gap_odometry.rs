@@ -10,7 +10,10 @@
 //! camera, refined with this frame's own stereo observations. This is ORB-SLAM3's visual
 //! odometry (`Tracking::UpdateLastFrame`'s temporary points from the last
 //! frame's depths, used in localisation mode when too few map points are
-//! found: `mbVO`), without the map. It helps where the map cannot: in a
+//! found: `mbVO`), without the map. Where the previous frame's depths give
+//! no step, this frame's depths are searched in the previous frame and the
+//! step inverted (ORB-SLAM3 looks one way only): an RGB-D frame that looks
+//! beyond the sensor's range has few depths, its neighbour many. It helps where the map cannot: in a
 //! fast turn with motion blur, consecutive blurred frames share their
 //! blur and match each other far better than the sharp keyframes before
 //! the turn.
@@ -66,6 +69,32 @@ pub struct OdometryStep {
     pub inliers: usize,
 }
 
+/// The motion from `previous` to `current` (`T_c,p`), measured from the
+/// keypoints with a depth of either frame: first `previous`'s 3-D points
+/// found in `current` (ORB-SLAM3's odometry from the last frame), then, when
+/// that gives no step, `current`'s 3-D points found in `previous` and the
+/// step inverted. The two frames of a step need not see depth alike: in an
+/// RGB-D turn the camera may look down a street beyond the sensor's range
+/// on one frame and at a near façade on the next, and the step is the same
+/// rigid motion whichever frame's depths measure it. `None` when neither
+/// direction gives [`MIN_STEP_INLIERS`] refined inliers.
+pub(crate) fn measure_step(
+    previous: &Frame,
+    current: &Frame,
+    rig: &CameraRig,
+    prediction: Option<&Se3>,
+) -> Result<Option<OdometryStep>, SlamError> {
+    if let Some(step) = step_from_depths_of(previous, current, rig, prediction)? {
+        return Ok(Some(step));
+    }
+    let reverse_prediction = prediction.map(Se3::inverse);
+    let reverse = step_from_depths_of(current, previous, rig, reverse_prediction.as_ref())?;
+    Ok(reverse.map(|step| OdometryStep {
+        pose_cp: step.pose_cp.inverse(),
+        inliers: step.inliers,
+    }))
+}
+
 /// The motion from `previous` to `current` (`T_c,p`) when their keypoints
 /// with a depth in `previous` give a pose with [`MIN_STEP_INLIERS`]
 /// refined inliers; `None` otherwise (too few matches, no RANSAC pose).
@@ -79,7 +108,7 @@ pub struct OdometryStep {
 /// a blurred turn: against the sharp frame before it, few descriptors pass
 /// a ratio test over the whole image, but most lie where the prediction
 /// puts them.
-pub(crate) fn measure_step(
+fn step_from_depths_of(
     previous: &Frame,
     current: &Frame,
     rig: &CameraRig,
@@ -327,11 +356,17 @@ mod tests {
     /// same `n` points (every one inside both images), predicted 0.2 m and
     /// 1° off, with the true step.
     fn step_over(n: usize) -> (Option<OdometryStep>, Se3) {
+        step_with_depths(n, (true, true))
+    }
+
+    /// [`step_over`] with a depth per keypoint in the previous frame, the
+    /// current one, both or neither (`depths`).
+    fn step_with_depths(n: usize, depths: (bool, bool)) -> (Option<OdometryStep>, Se3) {
         let world = PointWorld::new(11, n, (3.0, 2.0, 8.0, 12.0));
         let first = pose_at(Vector3::zeros(), 0.0);
         let second = pose_at(Vector3::new(0.1, 0.0, 1.0), 3f64.to_radians());
-        let (previous, seen_first) = world.frame(0, &first, true);
-        let (current, seen_second) = world.frame(1, &second, true);
+        let (previous, seen_first) = world.frame(0, &first, depths.0);
+        let (current, seen_second) = world.frame(1, &second, depths.1);
         assert_eq!(
             (seen_first.point_of.len(), seen_second.point_of.len()),
             (n, n)
@@ -358,5 +393,32 @@ mod tests {
         );
         let (step, _) = step_over(MIN_STEP_INLIERS - 1);
         assert_eq!(step, None, "20 points give no step");
+    }
+
+    /// The same rigid motion whichever frame's depths measure it: with none
+    /// in the previous frame (a view beyond the depth sensor's range), the
+    /// current frame's points found in the previous one give the step, to
+    /// the same precision as the forward direction; with depths in neither
+    /// frame there is no step.
+    #[test]
+    fn a_step_is_measured_from_the_current_frames_depths_when_the_previous_has_none() {
+        for depths in [(true, true), (false, true)] {
+            let (step, truth) = step_with_depths(60, depths);
+            let step = step.unwrap_or_else(|| panic!("a step with depths {depths:?}"));
+            // Measured: 60 forwards, 44 backwards (the guided search's
+            // first window holds 44 of the points at this prediction).
+            assert!(
+                step.inliers >= 40,
+                "depths {depths:?}: {} inliers of 60",
+                step.inliers
+            );
+            let error = truth.inverse().compose(&step.pose_cp);
+            let (metres, radians) = (error.translation.norm(), error.rotation.angle());
+            assert!(
+                metres < 1e-3 && radians < 1e-4,
+                "depths {depths:?}: {metres} m, {radians} rad off"
+            );
+        }
+        assert_eq!(step_with_depths(60, (false, false)).0, None);
     }
 }
