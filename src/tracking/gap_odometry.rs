@@ -13,10 +13,10 @@
 //! found: `mbVO`), without the map. Where the previous frame's depths give
 //! no step, this frame's depths are searched in the previous frame and the
 //! step inverted (ORB-SLAM3 looks one way only): an RGB-D frame that looks
-//! beyond the sensor's range has few depths, its neighbour many. It helps where the map cannot: in a
-//! fast turn with motion blur, consecutive blurred frames share their
-//! blur and match each other far better than the sharp keyframes before
-//! the turn.
+//! beyond the sensor's range has few depths, its neighbour many. It helps
+//! where the map cannot: in a fast turn with motion blur, consecutive
+//! blurred frames share their blur and match each other far better than
+//! the sharp keyframes before the turn.
 //!
 //! The step is measured only; the map is not changed and tracking stays
 //! lost (relocalisation is tried on the frame as before). The run's
