@@ -7,11 +7,20 @@
 //!
 //! A second run: the first 40 frames of the same lap with every façade the
 //! same grid of windows (`--condition repeated-texture`), RGB-D. Round
-//! frame 30 the walls after the first corner register against those
-//! before it, a quarter turn and about 23 m away, with 120–130 inliers
-//! (Intel Xeon, VNNI): every count stage passes, and before the drift
-//! stage existed the standard set closed this as a false loop (frame
-//! 29 → 3, EVALUATION.md). The drift stage must stop it.
+//! frame 30 the walls after the first corner look like those before it,
+//! a quarter turn and about 23 m away. Before the drift stage existed the
+//! standard set closed this as a false loop (frame 29 → 3, EVALUATION.md).
+//! While tracking slipped a façade period at a time (until session 54's
+//! step limit, `StepLimit` in `src/tracking/tracker.rs`) such look-alikes
+//! registered with 110–120 inliers and passed every count stage, and the
+//! drift stage stopped them (frames 29, 32, 35 and 38); on the map tracked
+//! without slipping the same look-alikes fail at RANSAC (12–28 inliers).
+//! No loop may close, every registration judged must be a different place,
+//! and a look-alike that passes every count stage must be stopped by the
+//! drift stage. The drift stage's own rule is tested in
+//! `src/loop_closing/drift.rs` and `stage_counts.rs`; in the standard set
+//! it stops a look-alike on the repeated-texture lap in stereo (frame
+//! 208 → 103).
 
 mod common;
 
@@ -116,8 +125,8 @@ fn every_loop_candidate_is_recorded_with_its_counts_and_judged() {
 }
 
 #[test]
-fn a_look_alike_on_repeated_texture_is_stopped_by_the_drift_stage() {
-    if !common::model_available("a_look_alike_on_repeated_texture_is_stopped_by_the_drift_stage") {
+fn no_look_alike_on_repeated_texture_closes_a_loop() {
+    if !common::model_available("no_look_alike_on_repeated_texture_closes_a_loop") {
         return;
     }
     let (report, _, _dir) = synth_and_run(
@@ -157,15 +166,21 @@ fn a_look_alike_on_repeated_texture_is_stopped_by_the_drift_stage() {
                 )
             )
     };
+    assert!(!candidates.is_empty(), "the look-alikes were not proposed");
+    for c in candidates {
+        assert!(!c["rejected_at"].is_null(), "a look-alike passed: {c}");
+        if !c["truth"].is_null() {
+            assert_eq!(c["truth"], "different", "{c}");
+        }
+    }
     let stopped: Vec<&serde_json::Value> = candidates
         .iter()
         .filter(|c| passes_every_count(c))
         .collect();
-    assert!(
-        !stopped.is_empty(),
-        "no look-alike passed every count stage, so the drift stage was not tested \
-         ({} candidates)",
-        candidates.len()
+    eprintln!(
+        "{} candidates, {} passed every count stage",
+        candidates.len(),
+        stopped.len()
     );
     for c in stopped {
         assert_eq!(c["truth"], "different", "{c}");
