@@ -22,52 +22,19 @@
 
 mod common;
 
-use common::cli::{frames_lost_and_maps, synth_then_run, INLINE_SUPERPOINT_ANMS};
-use common::temp_dir::TempDir;
+use common::cli::assert_lap_start_tracked_in_one_map;
 
 /// Frames run: to just past the first corner (frames 21–28).
 const FRAMES: usize = 36;
 /// ATE (SE3) bound in metres over those frames.
 const MAX_ATE_M: f64 = 0.12;
 
-fn assert_tracked_in_one_map(sensor: &str) {
-    let dir = TempDir::new("low-texture-corner", sensor);
-    let frames = FRAMES.to_string();
-    let dataset = format!("synth:{}", dir.path().display());
-    let report = synth_then_run(
-        dir.path(),
-        &[
-            "--scene",
-            "loop",
-            "--condition",
-            "low-texture",
-            "--frames",
-            &frames,
-        ],
-        &dataset,
-        &[&["--sensor", sensor][..], &INLINE_SUPERPOINT_ANMS].concat(),
-    );
-    let (records, lost, maps) = frames_lost_and_maps(&report);
-    assert_eq!(records.len(), FRAMES);
-    let starts: Vec<String> = records
-        .iter()
-        .filter(|r| r["method"] != "MotionModel")
-        .map(|r| format!("{}: {} {}", r["index"], r["method"], r["inliers"]))
-        .collect();
-    let ate = report["evaluation"]["ate"]["se3_rmse"].as_f64();
-    eprintln!("{sensor}: lost {lost:?}; maps {maps:?}; ATE {ate:?}; starts {starts:?}");
-    assert!(lost.is_empty(), "{sensor}: frames not tracked: {lost:?}");
-    assert_eq!(maps.len(), 1, "{sensor}: frames in maps {maps:?}");
-    let ate = ate.expect("the run is evaluated against the scene's truth");
-    assert!(ate <= MAX_ATE_M, "{sensor}: ATE {ate} m > {MAX_ATE_M} m");
-}
-
 #[test]
 fn the_bare_facades_first_corner_is_tracked_in_one_map_in_stereo() {
     if !common::model_available("the_bare_facades_first_corner_is_tracked_in_one_map_in_stereo") {
         return;
     }
-    assert_tracked_in_one_map("stereo");
+    assert_lap_start_tracked_in_one_map("low-texture", FRAMES, "stereo", MAX_ATE_M);
 }
 
 #[test]
@@ -75,5 +42,5 @@ fn the_bare_facades_start_is_tracked_in_one_map_in_rgbd() {
     if !common::model_available("the_bare_facades_start_is_tracked_in_one_map_in_rgbd") {
         return;
     }
-    assert_tracked_in_one_map("rgbd");
+    assert_lap_start_tracked_in_one_map("low-texture", FRAMES, "rgbd", MAX_ATE_M);
 }

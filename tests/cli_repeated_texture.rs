@@ -22,8 +22,7 @@
 
 mod common;
 
-use common::cli::{frames_lost_and_maps, synth_then_run, INLINE_SUPERPOINT_ANMS};
-use common::temp_dir::TempDir;
+use common::cli::assert_lap_start_tracked_in_one_map;
 
 /// Frames run: past frames 41–50, where the estimate slipped a period.
 const FRAMES: usize = 52;
@@ -35,28 +34,5 @@ fn the_repeated_facades_are_not_tracked_a_period_away_in_rgbd() {
     if !common::model_available("the_repeated_facades_are_not_tracked_a_period_away_in_rgbd") {
         return;
     }
-    let dir = TempDir::new("repeated-texture", "rgbd");
-    let frames = FRAMES.to_string();
-    let dataset = format!("synth:{}", dir.path().display());
-    let report = synth_then_run(
-        dir.path(),
-        &[
-            "--scene",
-            "loop",
-            "--condition",
-            "repeated-texture",
-            "--frames",
-            &frames,
-        ],
-        &dataset,
-        &[&["--sensor", "rgbd"][..], &INLINE_SUPERPOINT_ANMS].concat(),
-    );
-    let (records, lost, maps) = frames_lost_and_maps(&report);
-    assert_eq!(records.len(), FRAMES);
-    let ate = report["evaluation"]["ate"]["se3_rmse"].as_f64();
-    eprintln!("repeated texture, RGB-D: lost {lost:?}; maps {maps:?}; ATE {ate:?}");
-    assert!(lost.is_empty(), "frames not tracked: {lost:?}");
-    assert_eq!(maps.len(), 1, "frames in maps {maps:?}");
-    let ate = ate.expect("the run is evaluated against the scene's truth");
-    assert!(ate <= MAX_ATE_M, "ATE {ate} m > {MAX_ATE_M} m");
+    assert_lap_start_tracked_in_one_map("repeated-texture", FRAMES, "rgbd", MAX_ATE_M);
 }

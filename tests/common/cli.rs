@@ -131,3 +131,59 @@ pub fn step_errors_to_truth(dir: &std::path::Path, frames: &[usize]) -> Vec<(usi
         })
         .collect()
 }
+
+/// Asserts that a run's `report` has `frames` per-frame records, every one
+/// tracked and all in one map, printing the frames not started by the
+/// motion model (`label` names the run in the messages); returns the
+/// records.
+#[allow(dead_code)]
+pub fn assert_every_frame_in_one_map<'a>(
+    report: &'a serde_json::Value,
+    frames: usize,
+    label: &str,
+) -> &'a Vec<serde_json::Value> {
+    let (records, lost, maps) = frames_lost_and_maps(report);
+    assert_eq!(records.len(), frames, "{label}: one record per frame");
+    let starts: Vec<String> = records
+        .iter()
+        .filter(|r| r["method"] != "MotionModel")
+        .map(|r| format!("{}: {} {}", r["index"], r["method"], r["inliers"]))
+        .collect();
+    eprintln!("{label}: lost {lost:?}; maps {maps:?}; other starts {starts:?}");
+    assert!(lost.is_empty(), "{label}: frames not tracked: {lost:?}");
+    assert_eq!(maps.len(), 1, "{label}: frames in maps {maps:?}");
+    records
+}
+
+/// The first `frames` frames of the synthetic loop lap under `condition`
+/// (`spslam synth --scene loop --condition CONDITION`, 640×480 as in the
+/// suite), run with `--sensor SENSOR` and [`INLINE_SUPERPOINT_ANMS`]:
+/// asserts every frame tracked in one map and an ATE (SE3) of at most
+/// `max_ate_m` against the scene's truth.
+#[allow(dead_code)]
+pub fn assert_lap_start_tracked_in_one_map(
+    condition: &str,
+    frames: usize,
+    sensor: &str,
+    max_ate_m: f64,
+) {
+    let dir = super::temp_dir::TempDir::new(condition, sensor);
+    let frame_count = frames.to_string();
+    let dataset = format!("synth:{}", dir.path().display());
+    let synth = [
+        "--scene",
+        "loop",
+        "--condition",
+        condition,
+        "--frames",
+        &frame_count,
+    ];
+    let run = [&["--sensor", sensor][..], &INLINE_SUPERPOINT_ANMS].concat();
+    let report = synth_then_run(dir.path(), &synth, &dataset, &run);
+    let label = format!("{condition}, {sensor}");
+    assert_every_frame_in_one_map(&report, frames, &label);
+    let ate = report["evaluation"]["ate"]["se3_rmse"].as_f64();
+    eprintln!("{label}: ATE (SE3) {ate:?} m");
+    let ate = ate.expect("the run is evaluated against the scene's truth");
+    assert!(ate <= max_ate_m, "{label}: ATE {ate} m > {max_ate_m} m");
+}
