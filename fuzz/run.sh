@@ -32,22 +32,28 @@ flags+=" -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanit
 # 'C ABI fuzzing'). The harness builds its values with `arbitrary`, so there
 # are no magic constants for compare tracing to solve.
 flags+=" -Cdebug-assertions -Coverflow-checks"
-target=x86_64-unknown-linux-gnu
 case "$mode" in
   short|campaign)
-    toolchain=()
-    target_dir=target/stable ;;
+    # Only spslam's library and the target are instrumented (rustc_coverage.sh,
+    # a workspace wrapper); the dependencies are shared with the other release
+    # builds in ../target (`make test` builds the Python wheel's first), where
+    # instrumenting every crate meant compiling them all again (4 min of the
+    # 5 min build here). The `fuzzing` feature keeps this spslam apart from
+    # the plain one.
+    (cd .. && SPSLAM_FUZZ_RUSTFLAGS="$flags" RUSTC_WORKSPACE_WRAPPER="$PWD/fuzz/rustc_coverage.sh" \
+      cargo build --release -p spslam-fuzz --bin c_abi)
+    bin=../target/release/c_abi ;;
   long)
-    toolchain=(+nightly)
+    # AddressSanitizer wants every crate instrumented: its own target folder,
+    # and --target keeps the flags off build scripts and proc macros (as
+    # cargo fuzz does).
+    target=x86_64-unknown-linux-gnu
     flags+=" -Zsanitizer=address -Cforce-frame-pointers"
-    target_dir=target/asan ;;
+    RUSTFLAGS="$flags" cargo +nightly build --release --target "$target" \
+      --target-dir target/asan -p spslam-fuzz --bin c_abi
+    bin="target/asan/$target/release/c_abi" ;;
   *) echo "usage: fuzz/run.sh short|long|campaign [libFuzzer args]" >&2; exit 2 ;;
 esac
-
-# --target keeps the flags off build scripts and proc macros (as cargo fuzz does).
-RUSTFLAGS="$flags" cargo "${toolchain[@]}" build --release --target "$target" \
-  --target-dir "$target_dir" --bin c_abi
-bin="$target_dir/$target/release/c_abi"
 
 # Leaks in ONNX Runtime's own process-lifetime singletons are not ours.
 printf 'leak:libonnxruntime\n' > target/lsan.supp

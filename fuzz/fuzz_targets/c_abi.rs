@@ -673,7 +673,7 @@ fuzz_target!(|ops: Vec<Op>| {
     drop(handles);
     let _: *const c_char = spslam_last_error();
     let n = INPUTS.fetch_add(1, Ordering::Relaxed) + 1;
-    if n % (1 << 16) == 0 && std::env::var_os("SPSLAM_FUZZ_STATS").is_some() {
+    if n.is_multiple_of(1 << 16) && std::env::var_os("SPSLAM_FUZZ_STATS").is_some() {
         eprintln!(
             "[c_abi] {n} inputs: {} extractors created, {} extractions, {} keypoints",
             CREATED.load(Ordering::Relaxed),
