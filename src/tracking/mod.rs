@@ -40,6 +40,7 @@ mod motion;
 mod pose;
 mod relocalise;
 mod search;
+mod step_limit;
 mod tracker;
 
 pub use after_loss::LOST_FRAMES_KEPT_S;

@@ -25,6 +25,7 @@ use super::motion::{
     track_reference_keyframe, track_with_motion_model, MotionModelFit, MIN_POSE_INLIERS,
 };
 use super::relocalise::{relocalise_with, RelocalisationCandidates, MIN_RELOCALISATION_INLIERS};
+use super::step_limit::{PredictionLimit, StepLimit};
 use crate::camera::{CameraRig, Sensor};
 use crate::error::{MapContext, SlamError};
 
@@ -178,54 +179,6 @@ impl LocalMapScore {
     /// Whether this result is the better one.
     fn beats(&self, other: &Self) -> bool {
         self.key() > other.key()
-    }
-}
-
-/// How far another start's pose may lie from the motion model's, once the
-/// motion model's pose holds the local map's inliers, unless it has more
-/// than twice as many: one step of the constant velocity. ORB-SLAM3's
-/// `Track` keeps an accepted motion-model pose; this tracker also tries
-/// the reference keyframe when the prediction kept fewer than half its
-/// matches, and on a repeated pattern (a façade's identical windows) that
-/// start can land on another instance of the pattern, a period away, with
-/// somewhat more inliers (1.02 to 1.80 times over 33 such frames of the
-/// suite's repeated-texture RGB-D lap). The camera cannot have moved
-/// there between frames. A pose within a step (the same place, turned or
-/// refined) still replaces it by inliers, and so does one with more than
-/// twice its inliers, where the motion model's pose was the wrong one (3.2
-/// to 7.3 times on the turn in place, where the camera barely moves and
-/// the right pose lay 5-94 cm away, and on the noisy lap with ORB).
-#[derive(Debug, Clone, Copy)]
-struct StepLimit {
-    /// The motion model's camera centre (world).
-    centre: nalgebra::Vector3<f64>,
-    /// The constant velocity's translation, the camera's last step.
-    step: f64,
-    /// The motion model's local-map inliers.
-    inliers: usize,
-}
-
-impl StepLimit {
-    /// The limit around `frame`'s current pose and its `inliers`, from the
-    /// tracker's velocity; `None` without one.
-    fn around(frame: &Frame, inliers: usize, velocity: Option<&Se3>) -> Option<Self> {
-        velocity.map(|v| Self {
-            centre: frame.camera_center(),
-            step: v.translation.norm(),
-            inliers,
-        })
-    }
-
-    /// How far `frame`'s camera centre lies from the motion model's.
-    fn distance(&self, frame: &Frame) -> f64 {
-        (frame.camera_center() - self.centre).norm()
-    }
-
-    /// Whether `frame`'s pose, with `inliers` local-map inliers, is a jump
-    /// the motion model's pose is kept against: farther than a step from
-    /// it, with at most twice its inliers.
-    fn is_jump(&self, frame: &Frame, inliers: usize) -> bool {
-        self.distance(frame) > self.step && inliers <= 2 * self.inliers
     }
 }
 
@@ -565,6 +518,9 @@ impl Tracker {
                 }
             };
             inliers = self.track_local_map_logged(&mut frame, map, recently_relocalised)?;
+            if method == TrackingMethod::ImageRotation && self.is_prediction_jump(&frame, map) {
+                inliers = 0;
+            }
             // Every start's pose, for a lost frame's corroboration: the
             // first one's is kept once another start is tried (a frame
             // tracked by its first start allocates nothing).
@@ -956,11 +912,16 @@ impl Tracker {
                 true
             }
         };
-        let found = if tracked {
+        let mut found = if tracked {
             self.track_local_map_logged(frame, map, recently_relocalised)?
         } else {
             0
         };
+        if alternative.method() == TrackingMethod::ImageRotation
+            && self.is_prediction_jump(frame, map)
+        {
+            found = 0;
+        }
         if tracked {
             starts.push(StartPose {
                 method: alternative.method(),
@@ -990,6 +951,27 @@ impl Tracker {
         }
         (frame.pose_cw, frame.map_points, frame.reference_keyframe) = kept;
         Ok(None)
+    }
+
+    /// Whether `frame`'s pose, tracked from the search around the images'
+    /// rotation, lies farther from the constant velocity's prediction than
+    /// that start allows ([`PredictionLimit`]); such a pose counts as
+    /// tracked by no inliers.
+    fn is_prediction_jump(&self, frame: &Frame, map: &Map) -> bool {
+        let limit = self
+            .last_frame
+            .as_ref()
+            .and_then(|last| PredictionLimit::new(&last.pose_cw, self.velocity.as_ref()));
+        let Some((distance, allowed)) = limit.and_then(|l| l.exceeded(frame, map)) else {
+            return false;
+        };
+        tracing::debug!(
+            frame = frame.index,
+            distance,
+            allowed,
+            "the pose found around the images' rotation lies too far from the prediction"
+        );
+        true
     }
 
     /// The motion model's search around the rotation measured from the
@@ -1130,40 +1112,5 @@ impl Tracker {
             self.last_relative = relative;
             self.last_frame = Some(frame);
         }
-    }
-}
-
-#[cfg(test)]
-mod step_limit_tests {
-    use nalgebra::Vector3;
-
-    use super::StepLimit;
-    use crate::test_world::{pose_at, PointWorld};
-
-    #[test]
-    fn a_pose_a_period_away_is_a_jump_unless_it_has_twice_the_inliers() {
-        let world = PointWorld::new(5, 200, (14.0, 5.0, 4.0, 40.0));
-        // The motion model's pose: 1 m past the last frame (the step), 100 inliers.
-        let motion_model_pose = pose_at(Vector3::new(0.0, 0.0, 1.0), 0.0);
-        let (mut frame, _) = world.frame(1, &motion_model_pose, true);
-        frame.pose_cw = motion_model_pose;
-        let velocity = pose_at(Vector3::new(0.0, 0.0, 1.0), 0.0);
-        let limit = StepLimit::around(&frame, 100, Some(&velocity));
-        let Some(limit) = limit else {
-            panic!("a velocity gives a limit");
-        };
-        assert!((limit.step - 1.0).abs() < 1e-12, "step {}", limit.step);
-        // Another start 3 m back (a façade's period) with 180 inliers: a jump.
-        frame.pose_cw = pose_at(Vector3::new(0.0, 0.0, -2.0), 0.0);
-        assert!((limit.distance(&frame) - 3.0).abs() < 1e-9);
-        assert!(limit.is_jump(&frame, 180));
-        assert!(limit.is_jump(&frame, 200));
-        // The same pose with more than twice the inliers replaces it.
-        assert!(!limit.is_jump(&frame, 201));
-        // A pose within a step (refined, or turned 10°) is no jump.
-        frame.pose_cw = pose_at(Vector3::new(0.4, 0.0, 1.5), 10f64.to_radians());
-        assert!(!limit.is_jump(&frame, 120));
-        // Without a velocity there is no limit.
-        assert!(StepLimit::around(&frame, 100, None).is_none());
     }
 }
