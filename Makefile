@@ -94,9 +94,9 @@ demo: build
 evaluate: build
 	./target/release/spslam evaluate --jobs 2 --update-doc EVALUATION.md
 
+# The workspace: spslam, the Python bindings (python/) and the fuzz target (fuzz/).
 lint: setup
 	$(CARGO) fmt --all --check
-	$(CARGO) fmt --check --manifest-path fuzz/Cargo.toml
 	$(CARGO) clippy --release --workspace --all-targets -- -D warnings
 
 # Every test in its own process, two at a time, the longest first (about
