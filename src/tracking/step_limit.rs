@@ -27,7 +27,7 @@ use crate::optim::{LieGroup, Se3};
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct StepLimit {
     /// The motion model's camera centre (world).
-    pub(crate) centre: Vector3<f64>,
+    centre: Vector3<f64>,
     /// The constant velocity's translation, the camera's last step.
     pub(crate) step: f64,
     /// The motion model's local-map inliers.
@@ -68,11 +68,12 @@ const PREDICTION_DEPTH_FRACTION: f64 = 0.1;
 /// constant velocity's translation with the rotation the thumbnails show)
 /// may lie from the constant velocity's prediction: one step, or a tenth
 /// of the scene's median depth if that is more. That start changes only
-/// the rotation; on the suite's repeated-texture laps its poses either lay
-/// within 0.36 of a step of the prediction (right to 0.38 m, six runs) or
-/// 2.7 to 2.95 steps away (three runs, each a façade period, 2.8 to 3.0 m
-/// off the truth), after a thumbnail rotation 7° off had let the search
-/// match the windows one period along. ORB-SLAM3 has no such start.
+/// the rotation; over the suite's standard set its poses either lay within
+/// 0.36 of a step of the prediction (nine frames in seven runs, 0.01 to
+/// 0.38 m off the truth's step) or 2.72 to 2.95 steps away (three frames
+/// on the repeated-texture laps, each a façade period, 2.78 to 3.01 m
+/// off), after a thumbnail rotation 7° off had let the search match the
+/// windows one period along. ORB-SLAM3 has no such start.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct PredictionLimit {
     /// The predicted camera centre (world).
